@@ -1,0 +1,44 @@
+# Two commands do all set-up on a fresh machine: `make eval` and `make test`.
+# Each creates .venv and installs what is missing (Debian packages included).
+SHELL := /bin/bash
+VENV ?= .venv
+PY := $(VENV)/bin/python
+STAMP := $(VENV)/.ipbench-installed
+SUDO := $(shell [ "$$(id -u)" = 0 ] || echo sudo)
+export MUJOCO_GL ?= egl
+export PYOPENGL_PLATFORM ?= egl
+
+.PHONY: eval test setup lint clean
+
+eval: $(STAMP)
+	$(VENV)/bin/ipbench demo --out results
+
+test: $(STAMP)
+	$(PY) -m ruff check .
+	$(PY) -m pytest -q -n 2
+
+lint: $(STAMP)
+	$(PY) -m ruff check . && $(PY) -m ruff format --check .
+
+setup: $(STAMP)
+
+# Debian packages: libusb-1.0-0 (open3d) and Mesa EGL (headless MuJoCo rendering).
+# ffmpeg ships inside imageio-ffmpeg. CPU torch is installed first, from the exact pin,
+# because an unpinned torch pulls gigabytes of CUDA packages.
+$(STAMP): pyproject.toml
+	@need=""; \
+	ldconfig -p | grep -q 'libusb-1.0.so.0' || need="$$need libusb-1.0-0"; \
+	ldconfig -p | grep -q 'libEGL.so.1' || need="$$need libegl1"; \
+	ldconfig -p | grep -q 'libEGL_mesa.so.0' || need="$$need libegl-mesa0 libgl1-mesa-dri"; \
+	ldconfig -p | grep -q 'libGL.so.1' || need="$$need libgl1"; \
+	if [ -n "$$need" ]; then \
+	  echo "Installing Debian packages:$$need"; \
+	  $(SUDO) apt-get update -qq && DEBIAN_FRONTEND=noninteractive $(SUDO) apt-get install -y -qq $$need; \
+	fi
+	[ -x $(PY) ] || python3 -m venv $(VENV)
+	$(PY) -m pip install -q torch==2.13.0
+	$(PY) -m pip install -q -e '.[dev]'
+	touch $(STAMP)
+
+clean:
+	rm -rf $(VENV) results .pytest_cache

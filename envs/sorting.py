@@ -1,0 +1,392 @@
+"""``ipbench/Sorting-v0``: sort the objects on the table into their category's bin.
+
+The public contract (external policies and the benchmark's checks rely on it; the README
+documents it):
+
+* Categories, in bin order: ``juice_bottle, milk_carton, bowl, mug, juice_box``.
+* Action: ``{"command": Discrete(3), "position": Box(3), "yaw": Box(1), "bin": Discrete(5)}``.
+  ``0 = place_in_bin``: pick whatever is at ``position`` (world frame, m) with the jaws turned
+  to ``yaw`` and drop it in bin ``bin``; ``1 = inspect_in_area``: pick it and set it down in
+  the inspection area (or, when an object is already there or in hand, turn it by ``yaw``
+  there); ``2 = inspect_in_hand``: pick it and present it to the wrist camera (or, with an
+  object in hand or in the area, turn it by ``yaw`` and present it again). While an object
+  is in hand or in the area, ``place_in_bin`` acts on it and ``position`` is ignored. Each
+  inspect step's observation is the new view; after ``place_in_bin`` the camera looks at
+  the table again.
+* Observation: ``wrist_rgb`` (480x640x3 uint8), ``wrist_depth`` (480x640 float32, m, 0 =
+  no depth), ``head_left``/``head_right`` (HxWx3 uint8), ``qpos`` (robot joints),
+  ``wrist_K``/``head_*_K`` (3x3 intrinsics), ``wrist_pose``/``head_*_pose`` (4x4
+  world-from-camera, OpenCV convention: x right, y down, z forward).
+* ``info``: ``objects`` (per object id: category, instance, known, pose (7,) position and
+  quaternion of the object frame, center (3,) of its bounding box, status),
+  ``wrist_mask`` (480x640 int16 object id per pixel, -1 = none), ``skills`` (what ran, with
+  success and reason), ``physics_unstable``. Ground truth lives only in ``info``.
+* Reward: +1 per object that lands in its own bin, -1 in another bin, ``-step_cost`` per skill.
+  Terminated when no object is left on the table, in the area or in hand; truncated at
+  ``max_steps`` or when the physics goes unstable.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from functools import lru_cache
+
+import gymnasium as gym
+import mujoco
+import numpy as np
+from gymnasium import spaces
+
+from ipbench.assets.compose import CAMERA_ARM, GRIPPER_ARM, HEAD_SIDES, arm_joint_names
+from ipbench.assets.objects import CATEGORIES
+from ipbench.envs.depth_noise import DepthNoiseConfig, DepthNoiseModel
+from ipbench.envs.layout import SCENES, sample_layout
+from ipbench.envs.robot import MotionConfig, RobotController, ik_model
+from ipbench.envs.sensors import SensorRenderer, camera_pose, intrinsics
+from ipbench.envs.skills import SkillConfig, SkillResult, Skills
+from ipbench.envs.world import Places, World, build_world, object_status
+
+__all__ = ["SortingConfig", "SortingEnv", "InvalidActionError", "COMMANDS", "WRIST_CAMERA"]
+
+COMMANDS = ("place_in_bin", "inspect_in_area", "inspect_in_hand")
+"""Meaning of ``action["command"]``."""
+WRIST_CAMERA = f"{CAMERA_ARM}_wrist_camera"
+WRIST_SIZE = (480, 640)
+_UNSAFE = {"on_table", "in_inspection_area", "in_hand"}
+
+
+@lru_cache(maxsize=1)
+def _static_places() -> Places:
+    """The work cell's places (they do not depend on the objects)."""
+    return Places.from_model(ik_model())
+
+
+class InvalidActionError(ValueError):
+    """An action outside the action space; the message says which field and what is valid."""
+
+
+@dataclass(frozen=True)
+class SortingConfig:
+    """Settings of a sorting episode (defaults are the benchmark's).
+
+    Attributes
+    ----------
+    scene : ``"uncluttered"`` or ``"cluttered"`` (thesis Table 5.1).
+    head_size : (height, width) of each head image, px (D5100-like 3:2).
+    render_size : (height, width) of ``render()`` frames from the overview camera, px.
+    max_steps : step limit (truncation); ``None`` = 4 per object + 10.
+    step_cost : reward cost of each skill.
+    settle_time : physics time at reset for the objects to settle (s).
+    depth_noise : the wrist camera's noise model; ``DepthNoiseConfig(enabled=False)`` for
+        ideal depth.
+    motion, skills : robot motion and skill settings.
+    """
+
+    scene: str = "uncluttered"
+    head_size: tuple[int, int] = (680, 1024)
+    render_size: tuple[int, int] = (480, 640)
+    max_steps: int | None = None
+    step_cost: float = 0.01
+    settle_time: float = 0.3
+    depth_noise: DepthNoiseConfig = field(default_factory=DepthNoiseConfig)
+    motion: MotionConfig = field(default_factory=MotionConfig)
+    skills: SkillConfig = field(default_factory=SkillConfig)
+
+
+class SortingEnv(gym.Env):
+    """Sort household objects into bins with the CloPeMa robot (see the module docstring)."""
+
+    metadata = {"render_modes": ["rgb_array"], "render_fps": 30}
+
+    def __init__(self, render_mode: str | None = None, **config) -> None:
+        if render_mode not in (None, "rgb_array"):
+            raise ValueError(f"render_mode must be None or 'rgb_array', not {render_mode!r}")
+        self.config = SortingConfig(**config)
+        if self.config.scene not in SCENES:
+            raise ValueError(
+                f"unknown scene {self.config.scene!r}; valid scenes: {', '.join(SCENES)}"
+            )
+        self.render_mode = render_mode
+        self._n_objects = SCENES[self.config.scene].n_objects
+        self.max_steps = self.config.max_steps or 4 * self._n_objects + 10
+        self._noise = DepthNoiseModel(self.config.depth_noise)
+        self._renderer: SensorRenderer | None = None
+        self.world: World | None = None
+        self._frame_listeners: list[tuple[float, Callable[[], None]]] = []
+        self._robot_joints = (
+            ("turntable_joint",)
+            + arm_joint_names(GRIPPER_ARM)
+            + (f"{GRIPPER_ARM}_gripper_finger_a", f"{GRIPPER_ARM}_gripper_finger_b")
+            + arm_joint_names(CAMERA_ARM)
+            + tuple(f"head_{s}_{j}" for s in HEAD_SIDES for j in ("pan", "tilt"))
+        )
+        hh, hw = self.config.head_size
+        mat = spaces.Box(-np.inf, np.inf, (3, 3), np.float64)
+        pose = spaces.Box(-np.inf, np.inf, (4, 4), np.float64)
+        self.observation_space = spaces.Dict(
+            {
+                "wrist_rgb": spaces.Box(0, 255, (*WRIST_SIZE, 3), np.uint8),
+                "wrist_depth": spaces.Box(
+                    0.0, np.float32(self.config.depth_noise.max_range_m), WRIST_SIZE, np.float32
+                ),
+                "head_left": spaces.Box(0, 255, (hh, hw, 3), np.uint8),
+                "head_right": spaces.Box(0, 255, (hh, hw, 3), np.uint8),
+                "qpos": spaces.Box(-np.inf, np.inf, (len(self._robot_joints),), np.float64),
+                "wrist_K": mat,
+                "wrist_pose": pose,
+                "head_left_K": mat,
+                "head_left_pose": pose,
+                "head_right_K": mat,
+                "head_right_pose": pose,
+            }
+        )
+        self.action_space = spaces.Dict(
+            {
+                "command": spaces.Discrete(len(COMMANDS)),
+                "position": spaces.Box(
+                    np.array([-2.0, -2.0, 0.0], np.float32),
+                    np.array([2.0, 2.0, 2.5], np.float32),
+                    (3,),
+                    np.float32,
+                ),
+                "yaw": spaces.Box(-np.pi, np.pi, (1,), np.float32),
+                "bin": spaces.Discrete(len(CATEGORIES)),
+            }
+        )
+
+    # -- frames for videos -----------------------------------------------------------------
+    def add_frame_listener(self, callback: Callable[[], None], fps: float = 30.0) -> None:
+        """Call ``callback()`` every 1/``fps`` simulated seconds while skills run (videos)."""
+        self._frame_listeners.append((1.0 / fps, callback))
+
+    def _physics_step(self) -> None:
+        t_before = self.data.time
+        mujoco.mj_step(self.model, self.data)
+        for period, callback in self._frame_listeners:
+            if int(self.data.time / period) != int(t_before / period):
+                callback()
+
+    # -- gymnasium API -----------------------------------------------------------------------
+    def reset(self, *, seed: int | None = None, options: dict | None = None):
+        super().reset(seed=seed)
+        layout_seed = int(self.np_random.integers(2**31 - 1))
+        places = _static_places()
+        layout = sample_layout(
+            self.config.scene,
+            layout_seed,
+            places.spawn_area.center,
+            places.spawn_area.half,
+            places.table_height,
+        )
+        self.world = build_world(layout)
+        self.model = self.world.model
+        self.data = mujoco.MjData(self.model)
+        mujoco.mj_resetDataKeyframe(self.model, self.data, self.model.key("home").id)
+        self.robot = RobotController(self.model, self.data, self._physics_step, self.config.motion)
+        self.skills = Skills(self.robot, self.world.places, self.config.skills)
+        self._place_arms_at_start()
+        self.robot.hold(self.config.settle_time)
+        if self._renderer is not None:
+            self._renderer.close()
+        self._renderer = SensorRenderer(self.model)
+        self._specular_geoms = self._specular_geom_table()
+        self._steps = 0
+        self._area: tuple[np.ndarray, float] | None = None  # (grasp position, yaw) in the area
+        self._statuses = self._all_statuses()
+        self._unstable = False
+        obs = self._observation()
+        return obs, self._info([])
+
+    def step(self, action):
+        if self.world is None:
+            raise RuntimeError("call reset() before step()")
+        command, position, yaw, bin_index = self._validate(action)
+        self._steps += 1
+        warnings_before = sum(w.number for w in self.data.warning)
+        results = self._execute(command, position, yaw, bin_index)
+        before = self._statuses
+        self._statuses = self._all_statuses()
+        reward = -self.config.step_cost * sum(r.sim_time > 0 for r in results)
+        for k, status in enumerate(self._statuses):
+            if status.startswith("in_bin:") and status != before[k]:
+                correct = status == f"in_bin:{self.world.layout.objects[k].instance.category}"
+                reward += 1.0 if correct else -1.0
+        self._unstable = bool(
+            not np.all(np.isfinite(self.data.qpos))
+            or sum(w.number for w in self.data.warning) > warnings_before
+        )
+        terminated = not any(s in _UNSAFE for s in self._statuses)
+        truncated = self._unstable or self._steps >= self.max_steps
+        obs = self._observation()
+        return obs, float(reward), bool(terminated), bool(truncated), self._info(results)
+
+    def render(self):
+        if self.render_mode != "rgb_array" or self._renderer is None:
+            return None
+        h, w = self.config.render_size
+        return self._renderer.render_rgb(self.data, "overview", w, h)
+
+    def close(self) -> None:
+        if self._renderer is not None:
+            self._renderer.close()
+            self._renderer = None
+
+    # -- internals ---------------------------------------------------------------------------
+    def _validate(self, action) -> tuple[int, np.ndarray, float, int]:
+        if not isinstance(action, dict) or set(action) != set(self.action_space.spaces):
+            got = sorted(action) if isinstance(action, dict) else type(action).__name__
+            raise InvalidActionError(
+                f"an action is a dict with keys {sorted(self.action_space.spaces)}; got {got}"
+            )
+        for key, space in self.action_space.spaces.items():
+            value = action[key]
+            if isinstance(space, spaces.Discrete):
+                ok = (
+                    np.ndim(value) == 0
+                    and float(value) == int(value)
+                    and space.contains(np.int64(value))
+                )
+                if not ok:
+                    names = CATEGORIES if key == "bin" else COMMANDS
+                    valid = ", ".join(f"{i}={n}" for i, n in enumerate(names))
+                    raise InvalidActionError(f"action[{key!r}] = {value!r}; valid: {valid}")
+            else:
+                arr = np.asarray(value, dtype=np.float32).reshape(-1)
+                if arr.shape != space.shape or not space.contains(arr):
+                    raise InvalidActionError(
+                        f"action[{key!r}] = {value!r} is outside {space} (shape "
+                        f"{space.shape}, low {space.low.tolist()}, high {space.high.tolist()})"
+                    )
+        return (
+            int(action["command"]),
+            np.asarray(action["position"], float).reshape(3),
+            float(np.asarray(action["yaw"]).reshape(-1)[0]),
+            int(action["bin"]),
+        )
+
+    def _execute(self, command: int, position: np.ndarray, yaw: float, bin_index: int):
+        sk, places = self.skills, self.world.places
+        results: list[SkillResult] = []
+
+        def run(result: SkillResult) -> bool:
+            results.append(result)
+            return result.success
+
+        def acquire(target: np.ndarray, grasp_yaw: float) -> bool:
+            """Get an object in hand: already held, from the area, or at ``target``."""
+            if sk.holding:
+                return True
+            if self._area is not None:
+                target, grasp_yaw = self._area
+                self._area = None
+            elif not self._viewing("scene"):
+                run(sk.look(places.scene_view, places.scene_target))
+            return run(sk.pick(target, grasp_yaw))
+
+        name = COMMANDS[command]
+        if name == "place_in_bin":
+            if acquire(position, yaw):
+                run(sk.place_in_bin(CATEGORIES[bin_index]))
+            run(sk.look(places.scene_view, places.scene_target, name="look_at_table"))
+            self._view = "scene"
+        elif name == "inspect_in_area":
+            turn = yaw if (sk.holding or self._area is not None) else 0.0
+            if acquire(position, yaw) and run(sk.place_in_inspection_area(turn)):
+                a = places.inspection_area.center
+                self._area = (
+                    np.array([a[0], a[1], a[2] + sk.grasp_height + sk.config.grasp_depth]),
+                    sk.grasp_yaw,
+                )
+            run(sk.look(places.inspection_view, places.inspection_area.center, name="look_at_area"))
+            self._view = "area"
+        else:  # inspect_in_hand
+            turn = yaw if (sk.holding or self._area is not None) else 0.0
+            if acquire(position, yaw):
+                run(sk.present_in_hand(turn))
+                self._view = "hand"
+        return results
+
+    def _viewing(self, view: str) -> bool:
+        return getattr(self, "_view", "scene") == view
+
+    def _place_arms_at_start(self) -> None:
+        """Camera arm looking at the table, gripper arm parked clear of the camera's view."""
+        skills = self.skills
+        park = self.world.places.inspection_area.center + np.array(
+            [-0.05, 0.05, self.config.skills.transit_height + 0.05]
+        )
+        ready = skills.tool_pose(park[:2], park[2], 0.0)
+        targets = dict(zip(skills.camera_ready.joints, skills.camera_ready.qpos, strict=True))
+        targets.update(zip(ready.joints, ready.qpos, strict=True))
+        self.robot.teleport(targets)
+        self.robot.data.ctrl[skills.grasp_actuator] = self.config.skills.open_width
+        self._view = "scene"
+
+    def _specular_geom_table(self) -> np.ndarray:
+        """(ngeom + 1,) bool: geoms whose material is shiny (index -1 = background)."""
+        m = self.model
+        shiny = np.zeros(m.ngeom + 1, bool)
+        mat = m.geom_matid
+        shiny[:-1] = (mat >= 0) & (m.mat_specular[np.maximum(mat, 0)] >= 0.5)
+        return shiny
+
+    def _observation(self) -> dict:
+        m, d, r = self.model, self.data, self._renderer
+        h, w = WRIST_SIZE
+        rgb, depth = r.render_rgbd(d, WRIST_CAMERA, w, h)
+        seg = r.render_segmentation(d, WRIST_CAMERA, w, h)
+        self._wrist_seg = seg
+        k_wrist = intrinsics(m, WRIST_CAMERA, w, h)
+        depth = self._noise.apply(
+            depth,
+            k_wrist.fx,
+            k_wrist.fy,
+            self.np_random,
+            specular=self._specular_geoms[seg] if self._noise.uses_specular else None,
+        )
+        hh, hw = self.config.head_size
+        obs = {
+            "wrist_rgb": rgb,
+            "wrist_depth": depth.astype(np.float32),
+            "qpos": np.array([d.qpos[m.jnt_qposadr[m.joint(j).id]] for j in self._robot_joints]),
+            "wrist_K": k_wrist.K,
+            "wrist_pose": camera_pose(m, d, WRIST_CAMERA),
+        }
+        for side in HEAD_SIDES:
+            cam = f"head_{side}_camera"
+            obs[f"head_{side}"] = r.render_rgb(d, cam, hw, hh)
+            obs[f"head_{side}_K"] = intrinsics(m, cam, hw, hh).K
+            obs[f"head_{side}_pose"] = camera_pose(m, d, cam)
+        return obs
+
+    def _all_statuses(self) -> list[str]:
+        return [
+            object_status(self.world, self.data, k, self.skills.pads)
+            for k in range(len(self.world.layout.objects))
+        ]
+
+    def _info(self, results: list[SkillResult]) -> dict:
+        objects = {}
+        for k, obj in enumerate(self.world.layout.objects):
+            body = self.world.object_bodies[k]
+            pos, quat = self.data.xpos[body].copy(), self.data.xquat[body].copy()
+            rot = self.data.xmat[body].reshape(3, 3)
+            objects[k] = {
+                "category": obj.instance.category,
+                "instance": obj.instance.name,
+                "known": obj.instance.known,
+                "pose": np.concatenate([pos, quat]),
+                "center": pos + rot @ np.asarray(obj.instance.center),
+                "status": self._statuses[k],
+            }
+        seg = self._wrist_seg
+        lut = np.full(self.model.ngeom + 1, -1, np.int16)
+        for g, k in self.world.object_geoms.items():
+            lut[g] = k
+        return {
+            "objects": objects,
+            "wrist_mask": lut[seg],
+            "skills": [r.__dict__.copy() for r in results],
+            "physics_unstable": self._unstable,
+            "sim_time": float(self.data.time),
+        }

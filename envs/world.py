@@ -1,0 +1,175 @@
+"""The simulated work cell for one layout: model building, places, and object status.
+
+:func:`build_world` adds a layout's objects to the composed work cell and compiles it, with a
+``home`` keyframe (CloPeMa home: all arm joints zero; the head gazing at the table; objects at
+their layout poses). :class:`Places` reads every location the code needs from the model's
+sites, so each is written once, in ``assets/scenes/workcell.xml``. :func:`object_status` is
+ground truth for ``info`` and evaluation only: policies never see it.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import mujoco
+import numpy as np
+
+from ipbench.assets.compose import HEAD_SIDES, build_workcell_spec, head_gaze
+from ipbench.assets.objects import CATEGORIES, add_object
+from ipbench.envs.layout import Layout
+
+__all__ = ["Box", "Places", "World", "build_world", "object_status", "STATUSES"]
+
+STATUSES = ("on_table", "in_inspection_area", "in_hand", "dropped") + tuple(
+    f"in_bin:{c}" for c in CATEGORIES
+)
+"""Every value :func:`object_status` can return."""
+
+
+@dataclass(frozen=True)
+class Box:
+    """An axis-aligned box: ``center`` (3,) and ``half`` (3,) extents in the world (m)."""
+
+    center: np.ndarray
+    half: np.ndarray
+
+    def contains(self, p: np.ndarray, margin: float = 0.0) -> bool:
+        return bool(np.all(np.abs(np.asarray(p) - self.center) <= self.half + margin))
+
+
+@dataclass(frozen=True)
+class Places:
+    """Locations of the work cell, from the model's sites (world frame, m)."""
+
+    table_top: Box
+    spawn_area: Box
+    inspection_area: Box
+    bins: dict[str, Box]
+    present_point: np.ndarray
+    present_view: np.ndarray
+    scene_view: np.ndarray
+    scene_target: np.ndarray
+    inspection_view: np.ndarray
+    head_target: np.ndarray
+
+    @property
+    def table_height(self) -> float:
+        return float(self.table_top.center[2])
+
+    @classmethod
+    def from_model(cls, model: mujoco.MjModel) -> Places:
+        data = mujoco.MjData(model)
+        mujoco.mj_kinematics(model, data)
+
+        def point(name: str) -> np.ndarray:
+            return data.site(name).xpos.copy()
+
+        def box(name: str) -> Box:
+            return Box(point(name), model.site(name).size.copy())
+
+        return cls(
+            table_top=box("work_table_top"),
+            spawn_area=box("spawn_area"),
+            inspection_area=box("inspection_area"),
+            bins={c: box(f"bin_{c}") for c in CATEGORIES},
+            present_point=point("present_point"),
+            present_view=point("present_view"),
+            scene_view=point("scene_view"),
+            scene_target=point("scene_target"),
+            inspection_view=point("inspection_view"),
+            head_target=point("head_target"),
+        )
+
+
+@dataclass(frozen=True)
+class World:
+    """A compiled work cell with a layout's objects.
+
+    Attributes
+    ----------
+    model : the compiled model (keyframe ``home``).
+    layout : the layout it was built from.
+    places : the work cell's locations.
+    object_bodies : (n,) body id of each object, by object id.
+    object_geoms : dict geom id -> object id (every geom of every object).
+    """
+
+    model: mujoco.MjModel
+    layout: Layout
+    places: Places
+    object_bodies: np.ndarray
+    object_geoms: dict[int, int]
+
+
+def build_world(layout: Layout, spec: mujoco.MjSpec | None = None) -> World:
+    """Compile the work cell with ``layout``'s objects (``spec``: a fresh work cell spec)."""
+    spec = spec if spec is not None else build_workcell_spec()
+    for obj in layout.objects:
+        add_object(spec, obj.instance, obj.body, pos=obj.position, quat=obj.quat)
+    spec.add_key(name="home")
+    model = spec.compile()
+    places = Places.from_model(model)
+    _set_home_gaze(model, places.head_target)
+    bodies = np.array([model.body(o.body).id for o in layout.objects], dtype=int)
+    root_to_obj = {int(b): k for k, b in enumerate(bodies)}
+    geoms = {
+        g: root_to_obj[int(model.body_rootid[model.geom_bodyid[g]])]
+        for g in range(model.ngeom)
+        if int(model.body_rootid[model.geom_bodyid[g]]) in root_to_obj
+    }
+    return World(
+        model=model, layout=layout, places=places, object_bodies=bodies, object_geoms=geoms
+    )
+
+
+def _set_home_gaze(model: mujoco.MjModel, target: np.ndarray) -> None:
+    """Point both head cameras at ``target`` in the ``home`` keyframe (qpos and ctrl)."""
+    data = mujoco.MjData(model)
+    mujoco.mj_resetDataKeyframe(model, data, model.key("home").id)
+    mujoco.mj_kinematics(model, data)
+    key = model.key("home").id
+    for side in HEAD_SIDES:
+        pan_link = model.body(f"head_{side}_pan_link").id
+        parent = model.body_parentid[pan_link]
+        pan, tilt = head_gaze(data.xpos[parent], data.xmat[parent].reshape(3, 3), target)
+        for joint, value in ((f"head_{side}_pan", pan), (f"head_{side}_tilt", tilt)):
+            model.key_qpos[key, model.jnt_qposadr[model.joint(joint).id]] = value
+    # Position servos hold the keyframe pose: ctrl = the joint each actuator drives.
+    for a in range(model.nu):
+        j = model.actuator_trnid[a, 0]
+        model.key_ctrl[key, a] = model.key_qpos[key, model.jnt_qposadr[j]]
+
+
+def object_status(world: World, data: mujoco.MjData, object_id: int, pads: tuple[int, int]) -> str:
+    """Where an object is, from the simulation state (ground truth, for ``info`` only).
+
+    ``pads`` are the geom ids of the two gripper pads: an object touched by both is in hand.
+    """
+    body = world.object_bodies[object_id]
+    com = data.xipos[body]
+    touching: set[int] = set()
+    for c in data.contact[: data.ncon]:
+        for mine, other in ((c.geom1, c.geom2), (c.geom2, c.geom1)):
+            if world.object_geoms.get(int(mine)) == object_id:
+                touching.add(int(other))
+    if pads[0] in touching and pads[1] in touching:
+        return "in_hand"
+    for category, box in world.places.bins.items():
+        # inside the walls, from the floor up to a pile of objects above the rim
+        inside = np.all(np.abs(com[:2] - box.center[:2]) <= box.half[:2] + 0.01)
+        if (
+            inside
+            and box.center[2] - box.half[2] - 0.01 <= com[2] <= box.center[2] + box.half[2] + 0.3
+        ):
+            return f"in_bin:{category}"
+    table = world.places.table_top
+    on_table = bool(
+        np.all(np.abs(com[:2] - table.center[:2]) <= table.half[:2])
+        and table.center[2] < com[2] < table.center[2] + 0.35
+    )
+    if on_table:
+        area = world.places.inspection_area
+        if np.all(np.abs(com[:2] - area.center[:2]) <= area.half[:2]):
+            return "in_inspection_area"
+        return "on_table"
+    return "dropped"

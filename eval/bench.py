@@ -1,0 +1,110 @@
+"""``ipbench bench sim``: speed of the simulated work cell, printed (and optionally as JSON).
+
+Figures, for the sorting scene: physics steps/s as the environment runs them (with its frame
+hook) against raw ``mj_step`` of the same model; wrist RGB-D frames/s at 640x480 (render +
+depth noise; render alone too); head stereo pairs/s; wall time of a pick-and-place skill;
+``reset`` time. Speed targets live here, never in timed tests.
+"""
+
+from __future__ import annotations
+
+import json
+import time
+from pathlib import Path
+
+import gymnasium as gym
+import mujoco
+import numpy as np
+
+import ipbench.envs  # noqa: F401
+from ipbench.envs.sensors import intrinsics
+from ipbench.envs.sorting import WRIST_CAMERA, WRIST_SIZE
+from ipbench.policies.scripted import GroundTruthSorter
+
+__all__ = ["bench_sim", "TARGETS"]
+
+TARGETS = {"rgbd_fps": 200.0, "stereo_fps": 50.0, "reset_s": 0.5, "skill_s": 1.0}
+"""Targets on the 2-core reference machine (``>=`` for rates, ``<=`` for times)."""
+
+
+def _rate(fn, n: int) -> float:
+    fn()  # warm-up
+    t0 = time.perf_counter()
+    for _ in range(n):
+        fn()
+    return n / (time.perf_counter() - t0)
+
+
+def bench_sim(scene: str = "uncluttered", seed: int = 0, repeats: int = 3) -> dict[str, float]:
+    env = gym.make("ipbench/Sorting-v0", scene=scene)
+    base = env.unwrapped
+    reset_times = []
+    for k in range(repeats):
+        t0 = time.perf_counter()
+        obs, info = env.reset(seed=seed + k)
+        reset_times.append(time.perf_counter() - t0)
+    model, data, renderer = base.model, base.data, base._renderer
+    snapshot = mujoco.MjData(model)
+    mujoco.mj_copyData(snapshot, model, data)
+    physics = _rate(base._physics_step, 2000)
+    mujoco.mj_copyData(data, model, snapshot)
+    raw = _rate(lambda: mujoco.mj_step(model, data), 2000)
+    mujoco.mj_copyData(data, model, snapshot)
+    h, w = WRIST_SIZE
+    k = intrinsics(model, WRIST_CAMERA, w, h)
+    rng = np.random.default_rng(0)
+
+    def rgbd():
+        _, depth = renderer.render_rgbd(data, WRIST_CAMERA, w, h)
+        base._noise.apply(depth, k.fx, k.fy, rng)
+
+    rgbd_fps = _rate(rgbd, 100)
+    render_only = _rate(lambda: renderer.render_rgbd(data, WRIST_CAMERA, w, h), 100)
+    hh, hw = base.config.head_size
+
+    def stereo():
+        for side in ("left", "right"):
+            renderer.render_rgb(data, f"head_{side}_camera", hw, hh)
+
+    stereo_fps = _rate(stereo, 30)
+    policy, skill_times = GroundTruthSorter(), []
+    for _ in range(3):
+        t0 = time.perf_counter()
+        obs, _, terminated, truncated, info = env.step(policy.act(obs, info))
+        skill_times.append(time.perf_counter() - t0 - _observation_time(base))
+        if terminated or truncated:
+            break
+    env.close()
+    return {
+        "physics_steps_per_s": round(physics, 1),
+        "raw_mj_step_per_s": round(raw, 1),
+        "rgbd_fps": round(rgbd_fps, 1),
+        "rgbd_render_only_fps": round(render_only, 1),
+        "stereo_fps": round(stereo_fps, 1),
+        "skill_s": round(float(np.median(skill_times)), 3),
+        "reset_s": round(float(np.median(reset_times)), 3),
+    }
+
+
+def _observation_time(env) -> float:
+    """Wall time of one observation (subtracted so ``skill_s`` is the skill alone)."""
+    t0 = time.perf_counter()
+    env._observation()
+    return time.perf_counter() - t0
+
+
+def report(figures: dict[str, float], json_path: Path | None = None) -> str:
+    lines = []
+    for key, value in figures.items():
+        target = TARGETS.get(key)
+        note = ""
+        if target is not None:
+            at_most = key.endswith("_s")
+            ok = value <= target if at_most else value >= target
+            sign = "<=" if at_most else ">="
+            note = f"  (target {sign} {target}: {'ok' if ok else 'MISSED'})"
+        lines.append(f"{key:>22}: {value}{note}")
+    if json_path is not None:
+        json_path.parent.mkdir(parents=True, exist_ok=True)
+        json_path.write_text(json.dumps(figures, indent=2))
+    return "\n".join(lines)

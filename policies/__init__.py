@@ -1,0 +1,3 @@
+"""Sorting policies (random, GP-IPM, SVM-IPM, oracle); filled in by the policies issue."""
+
+__all__: list[str] = []
