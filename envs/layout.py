@@ -11,6 +11,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+import mujoco
 import numpy as np
 
 from ipbench.assets.objects import (
@@ -102,30 +103,6 @@ class Layout:
     objects: tuple[PlacedObject, ...]
 
 
-def _quat_mul(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    w1, x1, y1, z1 = a
-    w2, x2, y2, z2 = b
-    return np.array(
-        [
-            w1 * w2 - x1 * x2 - y1 * y2 - z1 * z2,
-            w1 * x2 + x1 * w2 + y1 * z2 - z1 * y2,
-            w1 * y2 - x1 * z2 + y1 * w2 + z1 * x2,
-            w1 * z2 + x1 * y2 - y1 * x2 + z1 * w2,
-        ]
-    )
-
-
-def _quat_to_mat(q: np.ndarray) -> np.ndarray:
-    w, x, y, z = q
-    return np.array(
-        [
-            [1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
-            [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
-            [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)],
-        ]
-    )
-
-
 def _footprint(inst: ObjectInstance, pose: RestingPose) -> tuple[np.ndarray, np.ndarray]:
     """Footprint of the object on the table in a resting pose, before the yaw.
 
@@ -135,7 +112,9 @@ def _footprint(inst: ObjectInstance, pose: RestingPose) -> tuple[np.ndarray, np.
     half = 0.5 * np.asarray(inst.size)
     signs = np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)])
     corners = np.asarray(inst.center) + signs * half
-    xy = (corners @ _quat_to_mat(np.asarray(pose.quat, float)).T)[:, :2]
+    rot = np.empty(9)
+    mujoco.mju_quat2Mat(rot, np.asarray(pose.quat, float))
+    xy = (corners @ rot.reshape(3, 3).T)[:, :2]
     lo, hi = xy.min(axis=0), xy.max(axis=0)
     return 0.5 * (lo + hi), 0.5 * (hi - lo)
 
@@ -253,7 +232,8 @@ def _place(scene, picks, rng, area_center, area_half, table_height, max_tries):
             return None
         rects.append(rect)
         qyaw = np.array([np.cos(yaw / 2), 0.0, 0.0, np.sin(yaw / 2)])
-        quat = _quat_mul(qyaw, np.asarray(pose.quat, float))
+        quat = np.empty(4)
+        mujoco.mju_mulQuat(quat, qyaw, np.asarray(pose.quat, float))
         placed.append(
             PlacedObject(
                 object_id=int(order_ids[k]),

@@ -42,7 +42,7 @@ from ipbench.assets.objects import CATEGORIES
 from ipbench.envs.depth_noise import DepthNoiseConfig, DepthNoiseModel
 from ipbench.envs.layout import SCENES, sample_layout
 from ipbench.envs.robot import MotionConfig, RobotController, ik_model
-from ipbench.envs.sensors import SensorRenderer, camera_pose, intrinsics
+from ipbench.envs.sensors import SensorRenderer, camera_pose, intrinsics, specular_geoms
 from ipbench.envs.skills import SkillConfig, SkillResult, Skills
 from ipbench.envs.world import Places, World, build_world, object_status
 
@@ -189,7 +189,8 @@ class SortingEnv(gym.Env):
         if self._renderer is not None:
             self._renderer.close()
         self._renderer = SensorRenderer(self.model)
-        self._specular_geoms = self._specular_geom_table()
+        # (ngeom + 1,): shiny geoms; the last entry stands for the background (id -1)
+        self._specular_geoms = np.append(specular_geoms(self.model), False)
         self._steps = 0
         self._area: tuple[np.ndarray, float] | None = None  # (grasp position, yaw) in the area
         self._statuses = self._all_statuses()
@@ -321,14 +322,6 @@ class SortingEnv(gym.Env):
         self.robot.teleport(targets)
         self.robot.data.ctrl[skills.grasp_actuator] = self.config.skills.open_width
         self._view = "scene"
-
-    def _specular_geom_table(self) -> np.ndarray:
-        """(ngeom + 1,) bool: geoms whose material is shiny (index -1 = background)."""
-        m = self.model
-        shiny = np.zeros(m.ngeom + 1, bool)
-        mat = m.geom_matid
-        shiny[:-1] = (mat >= 0) & (m.mat_specular[np.maximum(mat, 0)] >= 0.5)
-        return shiny
 
     def _observation(self) -> dict:
         m, d, r = self.model, self.data, self._renderer

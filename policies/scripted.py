@@ -9,6 +9,7 @@ what the camera sees.
 
 from __future__ import annotations
 
+import mujoco
 import numpy as np
 
 from ipbench.assets.objects import CATEGORIES, get_instance
@@ -17,19 +18,6 @@ __all__ = ["GroundTruthSorter", "grasp_yaws", "clearest_yaw", "ROUND"]
 
 ROUND = frozenset({"juice_bottle", "bowl", "mug"})
 """Categories with a round body (any jaw yaw closes across it)."""
-
-
-def _quat_to_mat(q: np.ndarray) -> np.ndarray:
-    w, x, y, z = q
-    return np.array(
-        [
-            [1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
-            [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
-            [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)],
-        ]
-    )
-
-
 JAW_REACH = 0.13
 """Half-span of the open jaws including the fingers (m): neighbours inside it get hit."""
 
@@ -41,7 +29,9 @@ def grasp_yaws(quat: np.ndarray, size: tuple[float, float, float], round_: bool)
     bounding box in its own frame (m). Upright: across the smaller of x and y (either side of
     a square), any yaw for a round body; lying: across the object's long (z) axis.
     """
-    rot = _quat_to_mat(np.asarray(quat, float))
+    rot = np.empty(9)
+    mujoco.mju_quat2Mat(rot, np.asarray(quat, float))
+    rot = rot.reshape(3, 3)
     if abs(rot[2, 2]) <= 0.7:
         axis = np.array([-rot[1, 2], rot[0, 2], 0.0])
         return [float(np.arctan2(axis[1], axis[0]))]
