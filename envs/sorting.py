@@ -184,11 +184,11 @@ class SortingEnv(gym.Env):
         mujoco.mj_resetDataKeyframe(self.model, self.data, self.model.key("home").id)
         self.robot = RobotController(self.model, self.data, self._physics_step, self.config.motion)
         self.skills = Skills(self.robot, self.world.places, self.config.skills)
-        self._place_arms_at_start()
-        self.robot.hold(self.config.settle_time)
         if self._renderer is not None:
             self._renderer.close()
         self._renderer = SensorRenderer(self.model)
+        self._place_arms_at_start()
+        self.robot.hold(self.config.settle_time)
         # (ngeom + 1,): shiny geoms; the last entry stands for the background (id -1)
         self._specular_geoms = np.append(specular_geoms(self.model), False)
         self._steps = 0

@@ -14,7 +14,7 @@ import numpy as np
 
 from ipbench.assets.objects import CATEGORIES, get_instance
 
-__all__ = ["GroundTruthSorter", "grasp_yaws", "clearest_yaw", "ROUND"]
+__all__ = ["GroundTruthSorter", "grasp_yaws", "clearest_yaw", "grasp_point", "ROUND"]
 
 ROUND = frozenset({"juice_bottle", "bowl", "mug"})
 """Categories with a round body (any jaw yaw closes across it)."""
@@ -59,25 +59,57 @@ def clearest_yaw(center: np.ndarray, yaws: list[float], neighbours: list[np.ndar
     return max(yaws, key=clearance)
 
 
+SHORT = 0.15
+"""Objects whose top is lower than this above their base (m) are grasped near the top."""
+TOP_MARGIN = 0.025
+"""How far below the top short objects are grasped (m): a bowl by its rim, not its slope."""
+
+
+def grasp_point(center: np.ndarray, quat: np.ndarray, size: tuple[float, float, float]):
+    """Where to grasp (3,): the bounding-box centre, lowered to just under the top for short
+    objects (the jaws close on a bowl's rim rather than wedging its conical wall upwards)."""
+    rot = np.empty(9)
+    mujoco.mju_quat2Mat(rot, np.asarray(quat, float))
+    half_height = 0.5 * float(np.abs(rot.reshape(3, 3)[2]) @ np.asarray(size))
+    point = np.array(center, float)
+    if 2 * half_height < SHORT:
+        point[2] += half_height - TOP_MARGIN
+    return point
+
+
 class GroundTruthSorter:
-    """Puts the objects on the table into their bins, nearest to the gripper's side first."""
+    """Puts the objects on the table into their bins, the gripper's side first.
+
+    After a failed grasp it tries the object's next candidate yaw; an object that failed twice
+    waits until every other object has had as many tries.
+    """
+
+    def __init__(self) -> None:
+        self.failures: dict[int, int] = {}
+        self._last: int | None = None
 
     def reset(self, seed: int | None = None) -> None:
-        pass
+        self.failures.clear()
+        self._last = None
 
     def act(self, observation: dict, info: dict) -> dict:
-        todo = {k: o for k, o in info["objects"].items() if o["status"] == "on_table"}
+        objects = info["objects"]
+        if self._last is not None and objects[self._last]["status"] == "on_table":
+            self.failures[self._last] = self.failures.get(self._last, 0) + 1
+        todo = {k: o for k, o in objects.items() if o["status"] == "on_table"}
         if not todo:
             raise ValueError("no object left on the table")
-        k = max(todo, key=lambda i: todo[i]["center"][1])  # left (gripper side) first
+        k = min(todo, key=lambda i: (self.failures.get(i, 0) // 2, -todo[i]["center"][1]))
+        self._last = k
         obj = todo[k]
         size = get_instance(obj["category"], int(obj["instance"].rsplit("_", 1)[1])).size
         yaws = grasp_yaws(obj["pose"][3:], size, round_=obj["category"] in ROUND)
         others = [o["center"] for i, o in todo.items() if i != k]
-        yaw = clearest_yaw(obj["center"], yaws, others)
+        best = clearest_yaw(obj["center"], yaws, others)
+        yaw = best + self.failures.get(k, 0) * np.pi / 2 if len(yaws) > 1 else best
         return {
             "command": 0,
-            "position": np.asarray(obj["center"], np.float32),
+            "position": grasp_point(obj["center"], obj["pose"][3:], size).astype(np.float32),
             "yaw": np.array([(yaw + np.pi) % (2 * np.pi) - np.pi], np.float32),
             "bin": CATEGORIES.index(obj["category"]),
         }
