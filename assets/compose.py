@@ -142,8 +142,8 @@ def head_gaze(
     target : (3,) world point to look at (m).
 
     The camera looks along the tilt link's +x; pan turns about the base z, positive tilt
-    pitches the camera down (about the pan link's +y). The small offsets between the axes and
-    the lens are ignored (they shift the gaze by < 1 deg at table distance).
+    pitches the camera down (about the pan link's +y). This ignores the offsets between the
+    axes and the lens (a few degrees at table distance); refine with forward kinematics.
     """
     v = base_xmat.T @ (np.asarray(target, float) - np.asarray(camera_pos, float))
     pan = float(np.arctan2(v[1], v[0]))

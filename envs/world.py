@@ -122,18 +122,29 @@ def build_world(layout: Layout, spec: mujoco.MjSpec | None = None) -> World:
     )
 
 
-def _set_home_gaze(model: mujoco.MjModel, target: np.ndarray) -> None:
-    """Point both head cameras at ``target`` in the ``home`` keyframe (qpos and ctrl)."""
-    data = mujoco.MjData(model)
-    mujoco.mj_resetDataKeyframe(model, data, model.key("home").id)
-    mujoco.mj_kinematics(model, data)
+def _set_home_gaze(model: mujoco.MjModel, target: np.ndarray, iterations: int = 4) -> None:
+    """Point both head cameras at ``target`` in the ``home`` keyframe (qpos and ctrl).
+
+    Starts from :func:`head_gaze` and corrects the pan and tilt by the remaining angular error
+    of each camera's optical axis, measured by forward kinematics.
+    """
     key = model.key("home").id
-    for side in HEAD_SIDES:
-        pan_link = model.body(f"head_{side}_pan_link").id
-        parent = model.body_parentid[pan_link]
-        pan, tilt = head_gaze(data.xpos[parent], data.xmat[parent].reshape(3, 3), target)
-        for joint, value in ((f"head_{side}_pan", pan), (f"head_{side}_tilt", tilt)):
-            model.key_qpos[key, model.jnt_qposadr[model.joint(joint).id]] = value
+    data = mujoco.MjData(model)
+    for k in range(iterations + 1):
+        mujoco.mj_resetDataKeyframe(model, data, key)
+        mujoco.mj_forward(model, data)  # camera frames too (mj_kinematics skips them)
+        for side in HEAD_SIDES:
+            base = model.body_parentid[model.body(f"head_{side}_pan_link").id]
+            rot = data.xmat[base].reshape(3, 3)
+            pan, tilt = head_gaze(data.xpos[base], rot, target)
+            adr = [model.jnt_qposadr[model.joint(f"head_{side}_{j}").id] for j in ("pan", "tilt")]
+            if k > 0:  # correct by the error of the camera's actual optical axis
+                cam = data.cam(f"head_{side}_camera")
+                now = head_gaze(np.zeros(3), rot, -cam.xmat.reshape(3, 3)[:, 2])
+                want = head_gaze(cam.xpos, rot, target)
+                pan = data.qpos[adr[0]] + want[0] - now[0]
+                tilt = data.qpos[adr[1]] + want[1] - now[1]
+            model.key_qpos[key, adr] = pan, tilt
     # Position servos hold the keyframe pose: ctrl = the joint each actuator drives.
     for a in range(model.nu):
         j = model.actuator_trnid[a, 0]

@@ -21,12 +21,23 @@ from ipbench.policies.scripted import GroundTruthSorter
 __all__ = ["run_demo"]
 
 
-def run_demo(out: Path, scenes=("uncluttered", "cluttered"), seed: int = 0, video: bool = True):
-    """Run one scripted episode per scene; returns the summary written to ``out``."""
+def run_demo(
+    out: Path,
+    scenes=("uncluttered", "cluttered"),
+    seed: int = 0,
+    video: bool = True,
+    max_steps: int | None = None,
+) -> dict:
+    """Run one scripted episode per scene; returns the summary written to ``out``.
+
+    ``max_steps`` shortens the episodes (the environment's step limit; for quick checks).
+    """
     out.mkdir(parents=True, exist_ok=True)
     summary = {}
     for scene in scenes:
-        env = gym.make("ipbench/Sorting-v0", scene=scene, render_mode="rgb_array")
+        env = gym.make(
+            "ipbench/Sorting-v0", scene=scene, render_mode="rgb_array", max_steps=max_steps
+        )
         recorder = VideoRecorder(env, fps=20) if video else None
         policy = GroundTruthSorter()
         t0 = time.perf_counter()
