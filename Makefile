@@ -5,6 +5,7 @@ VENV ?= .venv
 PY := $(VENV)/bin/python
 STAMP := $(VENV)/.ipbench-installed
 SUDO := $(shell [ "$$(id -u)" = 0 ] || echo sudo)
+LDCONFIG := $(shell command -v ldconfig || echo /sbin/ldconfig)
 export MUJOCO_GL ?= egl
 export PYOPENGL_PLATFORM ?= egl
 
@@ -27,10 +28,10 @@ setup: $(STAMP)
 # because an unpinned torch pulls gigabytes of CUDA packages.
 $(STAMP): pyproject.toml
 	@need=""; \
-	ldconfig -p | grep -q 'libusb-1.0.so.0' || need="$$need libusb-1.0-0"; \
-	ldconfig -p | grep -q 'libEGL.so.1' || need="$$need libegl1"; \
-	ldconfig -p | grep -q 'libEGL_mesa.so.0' || need="$$need libegl-mesa0 libgl1-mesa-dri"; \
-	ldconfig -p | grep -q 'libGL.so.1' || need="$$need libgl1"; \
+	$(LDCONFIG) -p | grep -q 'libusb-1.0.so.0' || need="$$need libusb-1.0-0"; \
+	$(LDCONFIG) -p | grep -q 'libEGL.so.1' || need="$$need libegl1"; \
+	$(LDCONFIG) -p | grep -q 'libEGL_mesa.so.0' || need="$$need libegl-mesa0 libgl1-mesa-dri"; \
+	$(LDCONFIG) -p | grep -q 'libGL.so.1' || need="$$need libgl1"; \
 	if [ -n "$$need" ]; then \
 	  echo "Installing Debian packages:$$need"; \
 	  $(SUDO) apt-get update -qq && DEBIAN_FRONTEND=noninteractive $(SUDO) apt-get install -y -qq $$need; \

@@ -192,52 +192,42 @@ class Skills:
             )
         return SkillResult("pick", True, "", self._t() - t0)
 
-    def place_in_bin(self, category: str) -> SkillResult:
-        """Carry the object in hand over the bin of ``category`` and let go."""
+    def _set_down(self, name: str, xy, z: float, yaw: float, above_z: float) -> SkillResult:
+        """Carry the object in hand over ``xy`` at ``above_z``, lower the TCP to ``z`` with the
+        jaws along ``yaw``, let go and retreat upwards."""
         t0 = self._t()
         if not self.holding:
-            return SkillResult("place_in_bin", False, "nothing in hand", 0.0)
-        box = self.places.bins[category]
-        rim = box.center[2] + box.half[2]
-        # The held object hangs about grasp_height below the TCP: release it just above the rim.
+            return SkillResult(name, False, "nothing in hand", 0.0)
         try:
-            above = self.tool_pose(box.center[:2], self._transit_z() + 0.1, self.grasp_yaw)
-            release = self.tool_pose(
-                box.center[:2],
-                rim + self.grasp_height + self.config.bin_release_clearance,
-                self.grasp_yaw,
-                q0=above.q,
-            )
+            above = self.tool_pose(xy, above_z, yaw)
+            down = self.tool_pose(xy, z, yaw, q0=above.q)
         except PlanningError as err:
-            return SkillResult("place_in_bin", False, f"unreachable: {err}", self._t() - t0)
+            return SkillResult(name, False, f"unreachable: {err}", 0.0)
         self.robot.move_to(above)
-        self.robot.move_to(release, 0.3)
-        self._gripper(self.config.open_width, self.config.release_time)
-        self.holding = False
-        self._retreat()
-        return SkillResult("place_in_bin", True, "", self._t() - t0)
-
-    def place_in_inspection_area(self, turn: float = 0.0) -> SkillResult:
-        """Set the object in hand down in the inspection area, turned by ``turn`` (rad)."""
-        t0 = self._t()
-        if not self.holding:
-            return SkillResult("place_in_inspection_area", False, "nothing in hand", 0.0)
-        area = self.places.inspection_area.center
-        yaw = self.grasp_yaw + turn
-        try:
-            above = self.tool_pose(area[:2], self._transit_z(), yaw)
-            down = self.tool_pose(area[:2], area[2] + self.grasp_height + 0.01, yaw, q0=above.q)
-            self.robot.move_to(above)
-            self.robot.move_to(down, 0.25)
-        except PlanningError as err:
-            return SkillResult(
-                "place_in_inspection_area", False, f"unreachable: {err}", self._t() - t0
-            )
+        self.robot.move_to(down, 0.25)
         self.grasp_yaw = yaw
         self._gripper(self.config.open_width, self.config.release_time)
         self.holding = False
         self._retreat()
-        return SkillResult("place_in_inspection_area", True, "", self._t() - t0)
+        return SkillResult(name, True, "", self._t() - t0)
+
+    def place_in_bin(self, category: str) -> SkillResult:
+        """Carry the object in hand over the bin of ``category`` and let go just above the rim
+        (the held object hangs about ``grasp_height`` below the TCP)."""
+        box = self.places.bins[category]
+        rim = box.center[2] + box.half[2]
+        z = rim + self.grasp_height + self.config.bin_release_clearance
+        return self._set_down(
+            "place_in_bin", box.center[:2], z, self.grasp_yaw, self._transit_z() + 0.1
+        )
+
+    def place_in_inspection_area(self, turn: float = 0.0) -> SkillResult:
+        """Set the object in hand down in the inspection area, turned by ``turn`` (rad)."""
+        area = self.places.inspection_area.center
+        z = area[2] + self.grasp_height + 0.01
+        return self._set_down(
+            "place_in_inspection_area", area[:2], z, self.grasp_yaw + turn, self._transit_z()
+        )
 
     def present_in_hand(self, turn: float = 0.0) -> SkillResult:
         """Hold the object in front of the wrist camera, turned about the vertical by ``turn``."""
