@@ -39,6 +39,23 @@ def build_parser() -> argparse.ArgumentParser:
     demo.add_argument("--seed", type=int, default=0, help="episode seed")
     demo.add_argument("--no-video", action="store_true", help="skip the MP4s")
 
+    evaluate = sub.add_parser("eval", help="benchmark evaluations that write reports")
+    eval_sub = evaluate.add_subparsers(dest="target", required=True, metavar="TARGET")
+    perception = eval_sub.add_parser(
+        "perception",
+        help="train and compare the GP, SVM and scikit-learn GP classifiers",
+        description="Renders (or loads from --cache) views of every object instance, fits "
+        "the FPFH codebook, trains the classifiers on the known instances and evaluates them "
+        "on the unknown ones and on cluttered-scene segments; writes metrics.json, "
+        "perception.md and figures to --out.",
+    )
+    perception.add_argument(
+        "--out", type=Path, default=Path("results/perception"), help="report folder"
+    )
+    perception.add_argument(
+        "--cache", type=Path, default=Path("results/cache"), help="rendered-view cache folder"
+    )
+
     bench = sub.add_parser("bench", help="speed benchmarks that print figures")
     bench_sub = bench.add_subparsers(dest="target", required=True, metavar="TARGET")
     sim = bench_sub.add_parser(
@@ -56,7 +73,39 @@ def build_parser() -> argparse.ArgumentParser:
         metavar="FILE",
         help="also write the figures as one JSON object (to FILE, or stdout with no FILE)",
     )
+    bench_perception = bench_sub.add_parser(
+        "perception",
+        help="segmentation, features and classification time of a cluttered scene; GP fit",
+        description="Per cluttered 640x480 observation: segmentation, FPFH + bag-of-words and "
+        "classification seconds (one core); GP and scikit-learn GP fit seconds on ~1,500 "
+        "256-d training vectors.",
+    )
+    bench_perception.add_argument(
+        "--json",
+        nargs="?",
+        const="-",
+        default=None,
+        metavar="FILE",
+        help="also write the figures as one JSON object (to FILE, or stdout with no FILE)",
+    )
     return parser
+
+
+def _writable(path: Path) -> None:
+    try:
+        path.mkdir(parents=True, exist_ok=True)
+        probe = path / ".write-test"
+        probe.write_text("")
+        probe.unlink()
+    except OSError as err:
+        raise SystemExit(f"ipbench: cannot write to {path}: {err}") from err
+
+
+def _print_figures(figures: dict, json_arg: str | None, report) -> None:
+    path = None if json_arg in (None, "-") else Path(json_arg)
+    print(report(figures, path))
+    if json_arg == "-":
+        print(json.dumps(figures))
 
 
 def _scenes(text: str) -> tuple[str, ...]:
@@ -80,13 +129,7 @@ def main(argv: list[str] | None = None) -> int:
         from ipbench.eval.demo import run_demo
 
         scenes = _scenes(args.scenes)
-        try:
-            args.out.mkdir(parents=True, exist_ok=True)
-            probe = args.out / ".write-test"
-            probe.write_text("")
-            probe.unlink()
-        except OSError as err:
-            raise SystemExit(f"ipbench: cannot write to --out {args.out}: {err}") from err
+        _writable(args.out)
         summary = run_demo(args.out, scenes, seed=args.seed, video=not args.no_video)
         for scene, s in summary.items():
             print(
@@ -95,15 +138,28 @@ def main(argv: list[str] | None = None) -> int:
             )
         print(f"results written to {args.out.resolve()}")
         return 0
+    if args.command == "eval" and args.target == "perception":
+        from ipbench.eval.perception import run_perception_eval
+
+        _writable(args.out)
+        _writable(args.cache)
+        metrics = run_perception_eval(args.out, args.cache)
+        for subset, by_name in metrics.items():
+            row = ", ".join(f"{n} {m['accuracy']:.3f}" for n, m in by_name.items())
+            print(f"{subset} accuracy on unknown instances: {row}")
+        print(f"report written to {(args.out / 'perception.md').resolve()}")
+        return 0
     if args.command == "bench" and args.target == "sim":
         from ipbench.eval.bench import bench_sim, report
 
         _scenes(args.scene)
-        figures = bench_sim(args.scene)
-        path = None if args.json in (None, "-") else Path(args.json)
-        print(report(figures, path))
-        if args.json == "-":
-            print(json.dumps(figures))
+        _print_figures(bench_sim(args.scene), args.json, report)
+        return 0
+    if args.command == "bench" and args.target == "perception":
+        from ipbench.eval.bench import report
+        from ipbench.eval.bench_perception import bench_perception
+
+        _print_figures(bench_perception(), args.json, report)
         return 0
     return 2
 

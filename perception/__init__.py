@@ -1,7 +1,69 @@
 """Perception: depth to point cloud, segmentation, FPFH bag-of-words, GP classification.
 
-Filled in by the perception issue; perception only ever reads observations, never
-simulator state.
+Perception reads observations only (depth, intrinsics, camera pose, and for in-hand crops the
+robot's own gripper pose), never simulator state. The rendered training data lives in
+:mod:`ipbench.perception.dataset`, which uses the simulator as a capture rig and is not
+imported here.
+
+- :mod:`~ipbench.perception.cloud`: depth → world-frame point cloud.
+- :mod:`~ipbench.perception.segmentation`: table plane (RANSAC), prism, Euclidean clusters;
+  foveated crops (inspection area, in hand); segment evaluation against ground truth.
+- :mod:`~ipbench.perception.features`: FPFH, k-means codebook, max-pooled bag of words.
+- :mod:`~ipbench.perception.gpc`: multi-class GP classification, Laplace approximation
+  (GPML algorithms 3.3/3.4) with hyper-parameters fitted by L-BFGS.
+- :mod:`~ipbench.perception.classifiers`: one interface for the GP and the SVM and
+  scikit-learn GP baselines.
+- :mod:`~ipbench.perception.metrics`: accuracy, log loss, calibration error, confusion.
+- :mod:`~ipbench.perception.model`: a trained model on disk, checked against its config hash.
 """
 
-__all__: list[str] = []
+from ipbench.perception.classifiers import CLASSIFIERS, Classifier, make_classifier
+from ipbench.perception.cloud import Cloud, PerceptionError, crop_box, depth_to_points
+from ipbench.perception.features import Codebook, FeatureConfig, describe, fpfh
+from ipbench.perception.gpc import GPCConfig, MulticlassLaplaceGPC
+from ipbench.perception.metrics import (
+    accuracy,
+    confusion_matrix,
+    expected_calibration_error,
+    log_loss,
+)
+from ipbench.perception.model import ModelFileError, PerceptionModel, load_or_train
+from ipbench.perception.segmentation import (
+    Segment,
+    SegmentationConfig,
+    grasp_yaw,
+    match_segments,
+    segment_in_hand,
+    segment_region,
+    segment_scene,
+)
+
+__all__ = [
+    "CLASSIFIERS",
+    "Classifier",
+    "Cloud",
+    "Codebook",
+    "FeatureConfig",
+    "GPCConfig",
+    "ModelFileError",
+    "MulticlassLaplaceGPC",
+    "PerceptionError",
+    "PerceptionModel",
+    "Segment",
+    "SegmentationConfig",
+    "accuracy",
+    "confusion_matrix",
+    "crop_box",
+    "depth_to_points",
+    "describe",
+    "expected_calibration_error",
+    "fpfh",
+    "grasp_yaw",
+    "load_or_train",
+    "log_loss",
+    "make_classifier",
+    "match_segments",
+    "segment_in_hand",
+    "segment_region",
+    "segment_scene",
+]

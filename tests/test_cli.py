@@ -34,7 +34,7 @@ def test_unknown_scene_is_rejected_with_the_valid_names():
 def test_unwritable_output_is_rejected(tmp_path):
     blocker = tmp_path / "file"
     blocker.write_text("")
-    with pytest.raises(SystemExit, match="cannot write to --out"):
+    with pytest.raises(SystemExit, match="cannot write to"):
         main(["demo", "--out", str(blocker / "sub"), "--scenes", "uncluttered"])
 
 

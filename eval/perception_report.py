@@ -1,0 +1,159 @@
+"""The perception report: ``perception.md`` and its figures (matplotlib, headless).
+
+Confusion matrices in the style of the thesis' figures 5.9/5.10, a reliability diagram
+(15 bins) and a confidence-per-class scatter like figure 5.11.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+
+from ipbench.perception.metrics import reliability_curve  # noqa: E402
+
+__all__ = ["write_report"]
+
+
+def _fmt(value) -> str:
+    return "n/a" if value is None else f"{value:.2f}"
+
+
+def _confusion_png(path: Path, matrix: np.ndarray, classes, title: str) -> None:
+    m = np.asarray(matrix, float)
+    rows = m / np.maximum(m.sum(axis=1, keepdims=True), 1)
+    fig, ax = plt.subplots(figsize=(4.6, 4.0), dpi=110)
+    ax.imshow(rows, cmap="Blues", vmin=0, vmax=1)
+    for i in range(len(classes)):
+        for j in range(len(classes)):
+            ax.text(
+                j,
+                i,
+                f"{rows[i, j]:.2f}",
+                ha="center",
+                va="center",
+                color="white" if rows[i, j] > 0.5 else "black",
+                fontsize=8,
+            )
+    labels = [c.replace("_", " ") for c in classes]
+    ax.set_xticks(range(len(classes)), labels, rotation=35, ha="right", fontsize=8)
+    ax.set_yticks(range(len(classes)), labels, fontsize=8)
+    ax.set_xlabel("predicted")
+    ax.set_ylabel("true")
+    ax.set_title(title, fontsize=9)
+    fig.tight_layout()
+    fig.savefig(path)
+    plt.close(fig)
+
+
+def _reliability_png(path: Path, curves: dict, title: str) -> None:
+    fig, ax = plt.subplots(figsize=(4.4, 4.0), dpi=110)
+    ax.plot([0, 1], [0, 1], "k:", lw=1, label="perfectly calibrated")
+    for name, (probs, labels) in curves.items():
+        if len(labels) == 0:
+            continue
+        conf, acc, count = reliability_curve(probs, labels, n_bins=15)
+        ok = count > 0
+        ax.plot(conf[ok], acc[ok], "o-", ms=3, label=name)
+    ax.set_xlabel("confidence (max probability)")
+    ax.set_ylabel("accuracy")
+    ax.set_title(title, fontsize=9)
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    fig.savefig(path)
+    plt.close(fig)
+
+
+def _scatter_png(path: Path, probs: np.ndarray, labels: np.ndarray, classes, title: str) -> None:
+    fig, ax = plt.subplots(figsize=(5.0, 3.6), dpi=110)
+    rng = np.random.default_rng(0)
+    if len(labels):
+        conf, pred = probs.max(axis=1), probs.argmax(axis=1)
+        x = labels + rng.uniform(-0.25, 0.25, len(labels))
+        right = pred == labels
+        ax.scatter(x[right], conf[right], s=8, c="tab:green", label="correct")
+        ax.scatter(x[~right], conf[~right], s=10, c="tab:red", marker="x", label="wrong")
+    ax.set_xticks(range(len(classes)), [c.replace("_", " ") for c in classes], fontsize=8)
+    ax.set_ylabel("confidence of the predicted class")
+    ax.set_ylim(0, 1.02)
+    ax.set_title(title, fontsize=9)
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    fig.savefig(path)
+    plt.close(fig)
+
+
+def write_report(
+    out: Path, metrics: dict, figures: dict, subsets: dict, thesis: dict, info: dict
+) -> Path:
+    """Write ``perception.md`` and the PNGs into ``out``; returns the markdown's path."""
+    lines = [
+        "# Perception: FPFH bag-of-words and GP classification on simulator views",
+        "",
+        f"Training: {info['train_views']} views of the known instances (isolated). Test: "
+        f"{info['unknown_views']} views of the unknown instances (isolated) and "
+        f"{info['cluttered_segments']} segments cut out of cluttered scenes (labelled by "
+        f"overlap with the ground truth). Codebook: {info['codebook_size']} words. "
+        f"Dataset key: `{info['dataset_key']}`.",
+        "",
+    ]
+    for subset, classes in subsets.items():
+        lines += [
+            f"## {subset}: {', '.join(classes)}",
+            "",
+            "| classifier | accuracy | log loss | ECE (15 bins) | fit s | predict s | "
+            "cluttered accuracy | cluttered log loss | cluttered ECE | thesis accuracy |",
+            "|---|---|---|---|---|---|---|---|---|---|",
+        ]
+        for name, m in metrics[subset].items():
+            c = m.get("cluttered", {})
+            ref = thesis.get(subset, {}).get(name)
+            lines.append(
+                f"| {name} | {m.get('accuracy', float('nan')):.3f} | "
+                f"{m.get('log_loss', float('nan')):.3f} | {m.get('ece', float('nan')):.3f} | "
+                f"{m['fit_s']:.2f} | {m['predict_s']:.3f} | "
+                f"{c.get('accuracy', float('nan')):.3f} | {c.get('log_loss', float('nan')):.3f} "
+                f"| {c.get('ece', float('nan')):.3f} | {'' if ref is None else f'{ref:.2f}'} |"
+            )
+        lines += [
+            "",
+            "Per-class recall / precision on the unknown instances:",
+            "",
+            "| classifier | " + " | ".join(classes) + " |",
+            "|---|" + "---|" * len(classes),
+        ]
+        for name, m in metrics[subset].items():
+            cells = [
+                f"{_fmt(r)} / {_fmt(p)}"
+                for r, p in zip(m.get("recall", []), m.get("precision", []), strict=True)
+            ]
+            lines.append(f"| {name} | " + " | ".join(cells) + " |")
+        lines.append("")
+        curves = {}
+        for name in metrics[subset]:
+            probs, labels = figures[(subset, name, "unknown")]
+            if len(labels):
+                png = f"confusion_{subset}_{name}.png"
+                _confusion_png(
+                    out / png,
+                    metrics[subset][name]["confusion"],
+                    classes,
+                    f"{name}, {subset}, unknown instances",
+                )
+                lines.append(f"![{name} confusion]({png})")
+            curves[name] = (probs, labels)
+        rel = f"reliability_{subset}.png"
+        _reliability_png(out / rel, curves, f"reliability, {subset}, unknown instances")
+        lines += ["", f"![reliability]({rel})"]
+        if "gp" in metrics[subset]:
+            probs, labels = figures[(subset, "gp", "unknown")]
+            sc = f"confidence_{subset}_gp.png"
+            _scatter_png(out / sc, probs, labels, classes, f"GP confidence per class, {subset}")
+            lines += [f"![confidence]({sc})", ""]
+    path = out / "perception.md"
+    path.write_text("\n".join(lines) + "\n")
+    return path

@@ -1,0 +1,196 @@
+"""One interface, three probabilistic classifiers for the object categories.
+
+* ``"gp"``: :class:`~ipbench.perception.gpc.MulticlassLaplaceGPC`, the joint multi-class
+  Laplace GP (softmax likelihood, shared SE kernel, ML-II hyper-parameters).
+* ``"svm"``: an RBF support-vector machine with Platt-scaled probabilities. scikit-learn
+  1.9 deprecates ``SVC(probability=True)``, so calibration is explicit:
+  ``CalibratedClassifierCV(SVC(kernel="rbf", C=C, gamma="scale"), method="sigmoid", cv=5)``
+  (one-vs-rest sigmoids, renormalised), with ``C`` chosen from ``SVM_C_GRID`` by 3-fold
+  cross-validated accuracy on the training set first.
+* ``"sklearn_gp"``: scikit-learn's ``GaussianProcessClassifier``: one-vs-rest binary
+  Laplace GPs, no joint multi-class posterior. It is given the explicit kernel
+  ``ConstantKernel * RBF`` (length scale initialised at the median pairwise distance)
+  because with ``kernel=None`` scikit-learn *fixes* the hyper-parameters of its default
+  ``1.0 * RBF(1.0)`` and tunes nothing.
+
+All classifiers return ``(m, n_classes)`` probabilities whose columns are the classes
+``0 .. n_classes - 1``, also when a class is missing from the training labels. The GP can be
+saved with ``get_state`` / ``from_state``; the scikit-learn based ones are plain Python
+objects that the caller can pickle.
+"""
+
+from __future__ import annotations
+
+from typing import Protocol, runtime_checkable
+
+import numpy as np
+from sklearn.base import BaseEstimator
+from sklearn.calibration import CalibratedClassifierCV
+from sklearn.gaussian_process import GaussianProcessClassifier
+from sklearn.gaussian_process.kernels import RBF, ConstantKernel
+from sklearn.model_selection import GridSearchCV
+from sklearn.svm import SVC
+
+from ipbench.perception.gpc import GPCConfig, MulticlassLaplaceGPC
+
+__all__ = [
+    "CLASSIFIERS",
+    "SVM_C_GRID",
+    "Classifier",
+    "ClassifierError",
+    "GPClassifier",
+    "SVMClassifier",
+    "SklearnGPClassifier",
+    "make_classifier",
+]
+
+CLASSIFIERS: tuple[str, ...] = ("gp", "svm", "sklearn_gp")
+SVM_C_GRID: tuple[float, ...] = (1.0, 10.0, 100.0)
+
+
+class ClassifierError(ValueError):
+    """Unknown classifier name or a classifier used before ``fit``."""
+
+
+@runtime_checkable
+class Classifier(Protocol):
+    """A probabilistic classifier over ``n_classes`` classes.
+
+    ``X`` is ``(n, d)`` float, ``y`` ``(n,)`` int in ``0 .. n_classes - 1``.
+    """
+
+    name: str
+
+    def fit(self, X: np.ndarray, y: np.ndarray) -> Classifier: ...
+
+    def predict_proba(self, X: np.ndarray) -> np.ndarray: ...
+
+    def predict(self, X: np.ndarray) -> np.ndarray: ...
+
+
+def _median_distance(X: np.ndarray, max_points: int = 1000) -> float:
+    X = X[:max_points]
+    sq = np.einsum("ij,ij->i", X, X)
+    d2 = np.maximum(sq[:, None] + sq[None, :] - 2.0 * X @ X.T, 0.0)
+    med = float(np.sqrt(np.median(d2[np.triu_indices(X.shape[0], 1)]))) if len(X) > 1 else 0.0
+    return med if med > 0 else 1.0
+
+
+class _SklearnBased:
+    """Shared ``predict_proba`` / ``predict`` for wrappers around a scikit-learn estimator."""
+
+    name = ""
+
+    def __init__(self, n_classes: int, seed: int = 0) -> None:
+        self.n_classes = int(n_classes)
+        self.seed = seed
+        self.estimator_: BaseEstimator | None = None
+
+    def predict_proba(self, X: np.ndarray) -> np.ndarray:
+        """``(m, n_classes)`` class probabilities; rows sum to one."""
+        if self.estimator_ is None:
+            raise ClassifierError(f"classifier {self.name!r} is not fitted: call fit(X, y) first")
+        p = self.estimator_.predict_proba(np.asarray(X, dtype=float))
+        out = np.zeros((p.shape[0], self.n_classes))
+        out[:, np.asarray(self.estimator_.classes_, dtype=np.int64)] = p
+        return out / out.sum(axis=1, keepdims=True)
+
+    def predict(self, X: np.ndarray) -> np.ndarray:
+        """``(m,)`` most probable classes."""
+        return np.argmax(self.predict_proba(X), axis=1)
+
+
+class SVMClassifier(_SklearnBased):
+    """RBF SVM, ``C`` from ``SVM_C_GRID`` (3-fold CV accuracy), Platt-calibrated (5-fold)."""
+
+    name = "svm"
+
+    def fit(self, X: np.ndarray, y: np.ndarray) -> SVMClassifier:
+        X, y = np.asarray(X, dtype=float), np.asarray(y, dtype=np.int64)
+        search = GridSearchCV(SVC(kernel="rbf", gamma="scale"), {"C": list(SVM_C_GRID)}, cv=3)
+        self.C_ = float(search.fit(X, y).best_params_["C"])
+        svc = SVC(kernel="rbf", C=self.C_, gamma="scale", random_state=self.seed)
+        self.estimator_ = CalibratedClassifierCV(svc, method="sigmoid", cv=5).fit(X, y)
+        return self
+
+
+class SklearnGPClassifier(_SklearnBased):
+    """scikit-learn ``GaussianProcessClassifier`` (one-vs-rest) with a tunable kernel."""
+
+    name = "sklearn_gp"
+
+    def fit(self, X: np.ndarray, y: np.ndarray) -> SklearnGPClassifier:
+        X, y = np.asarray(X, dtype=float), np.asarray(y, dtype=np.int64)
+        kernel = ConstantKernel(1.0, (1e-2, 1e4)) * RBF(_median_distance(X), (1e-3, 1e3))
+        gpc = GaussianProcessClassifier(kernel=kernel, random_state=self.seed)
+        self.estimator_ = gpc.fit(X, y)
+        return self
+
+
+class GPClassifier:
+    """Our multi-class Laplace GP behind the :class:`Classifier` interface.
+
+    Parameters
+    ----------
+    n_classes : int
+    seed : int
+        Seed of the Monte-Carlo predictions and of the hyper-parameter start subset.
+    config : GPCConfig or None
+        Full settings; None: defaults with ``seed``.
+    """
+
+    name = "gp"
+
+    def __init__(self, n_classes: int, seed: int = 0, config: GPCConfig | None = None) -> None:
+        self.n_classes = int(n_classes)
+        self.seed = seed
+        self.config = GPCConfig(seed=seed) if config is None else config
+        self.model_: MulticlassLaplaceGPC | None = None
+
+    def fit(self, X: np.ndarray, y: np.ndarray) -> GPClassifier:
+        self.model_ = MulticlassLaplaceGPC(self.config).fit(X, y, self.n_classes)
+        return self
+
+    def _model(self) -> MulticlassLaplaceGPC:
+        if self.model_ is None:
+            raise ClassifierError("classifier 'gp' is not fitted: call fit(X, y) first")
+        return self.model_
+
+    def predict_proba(self, X: np.ndarray) -> np.ndarray:
+        """``(m, n_classes)`` class probabilities (Monte Carlo, reproducible); rows sum to one."""
+        return self._model().predict_proba(X)
+
+    def predict(self, X: np.ndarray) -> np.ndarray:
+        """``(m,)`` most probable classes."""
+        return self._model().predict(X)
+
+    def get_state(self) -> dict[str, np.ndarray]:
+        """Arrays for ``np.savez``; see :meth:`MulticlassLaplaceGPC.get_state`."""
+        return self._model().get_state()
+
+    @classmethod
+    def from_state(cls, state: dict[str, np.ndarray]) -> GPClassifier:
+        """Rebuild a fitted classifier from :meth:`get_state` output."""
+        model = MulticlassLaplaceGPC.from_state(state)
+        clf = cls(model.n_classes_, model.config.seed, model.config)
+        clf.model_ = model
+        return clf
+
+
+def make_classifier(name: str, n_classes: int, seed: int = 0) -> Classifier:
+    """Build an unfitted classifier by name (one of :data:`CLASSIFIERS`).
+
+    Raises
+    ------
+    ClassifierError
+        For an unknown name (the message lists the valid ones) or ``n_classes < 2``.
+    """
+    if int(n_classes) < 2:
+        raise ClassifierError(f"n_classes must be >= 2, got {n_classes}")
+    if name == "gp":
+        return GPClassifier(n_classes, seed)
+    if name == "svm":
+        return SVMClassifier(n_classes, seed)
+    if name == "sklearn_gp":
+        return SklearnGPClassifier(n_classes, seed)
+    raise ClassifierError(f"unknown classifier {name!r}; valid names: {', '.join(CLASSIFIERS)}")

@@ -1,0 +1,111 @@
+"""A trained perception model on disk: codebook, GP classifier, and the hash that made them.
+
+:func:`load_or_train` returns the saved model when its hash matches the configuration that
+asks for it; a stale file (another configuration or format version) or a corrupt one is
+reported and the model is trained again, so nothing silently uses a wrong model.
+"""
+
+from __future__ import annotations
+
+import zipfile
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from ipbench.perception.cloud import PerceptionError
+from ipbench.perception.features import Codebook
+from ipbench.perception.gpc import MulticlassLaplaceGPC
+
+__all__ = ["MODEL_VERSION", "ModelFileError", "PerceptionModel", "load_or_train"]
+
+MODEL_VERSION = 1
+"""Format version of the saved file; bumped when the layout changes."""
+
+_CODEBOOK, _GP = "codebook__", "gp__"
+
+
+class ModelFileError(PerceptionError):
+    """A saved model that is stale (other configuration or version) or unreadable."""
+
+
+@dataclass(frozen=True)
+class PerceptionModel:
+    """Codebook + GP classifier for ``classes`` (category names, in label order).
+
+    ``key`` is the hash of the configuration (dataset, features, classes, classifier) that
+    trained it.
+    """
+
+    classes: tuple[str, ...]
+    codebook: Codebook
+    classifier: MulticlassLaplaceGPC
+    key: str
+
+    def probabilities(self, views: list[np.ndarray]) -> np.ndarray:
+        """(m, C) class probabilities of ``m`` views, each given as its (n_i, 33) FPFHs."""
+        if not views:
+            return np.zeros((0, len(self.classes)))
+        return self.classifier.predict_proba(np.stack([self.codebook.encode(v) for v in views]))
+
+    def save(self, path: str | Path) -> Path:
+        """Write atomically (a temporary file renamed into place)."""
+        path = Path(path)
+        path.parent.mkdir(parents=True, exist_ok=True)
+        arrays = {f"{_CODEBOOK}{k}": v for k, v in self.codebook.to_arrays().items()}
+        arrays.update({f"{_GP}{k}": v for k, v in self.classifier.get_state().items()})
+        tmp = path.with_name(path.stem + ".tmp.npz")
+        np.savez(
+            tmp,
+            classes=np.array(self.classes),
+            key=np.array(self.key),
+            version=np.array(MODEL_VERSION),
+            **arrays,
+        )
+        tmp.replace(path)
+        return path
+
+    @classmethod
+    def load(cls, path: str | Path, key: str) -> PerceptionModel:
+        """Load a model trained by configuration ``key``; :class:`ModelFileError` otherwise."""
+        try:
+            with np.load(path, allow_pickle=False) as data:
+                arrays = {k: data[k] for k in data.files}
+        except (OSError, ValueError, zipfile.BadZipFile) as err:
+            raise ModelFileError(f"model file {path} is unreadable ({err})") from err
+        version = int(arrays.get("version", -1))
+        if version != MODEL_VERSION or str(arrays.get("key")) != key:
+            raise ModelFileError(
+                f"model file {path} is stale: trained by configuration "
+                f"{arrays.get('key')!s} (format {version}), expected {key} "
+                f"(format {MODEL_VERSION})"
+            )
+        try:
+            codebook = Codebook.from_arrays(
+                {k[len(_CODEBOOK) :]: v for k, v in arrays.items() if k.startswith(_CODEBOOK)}
+            )
+            gp = MulticlassLaplaceGPC.from_state(
+                {k[len(_GP) :]: v for k, v in arrays.items() if k.startswith(_GP)}
+            )
+        except (KeyError, ValueError) as err:
+            raise ModelFileError(f"model file {path} is incomplete ({err})") from err
+        return cls(tuple(str(c) for c in arrays["classes"]), codebook, gp, key)
+
+
+def load_or_train(
+    path: str | Path,
+    key: str,
+    train: Callable[[], PerceptionModel],
+    log: Callable[[str], None] = print,
+) -> PerceptionModel:
+    """The model saved at ``path`` if it was trained by ``key``, else ``train()`` (saved)."""
+    path = Path(path)
+    if path.exists():
+        try:
+            return PerceptionModel.load(path, key)
+        except ModelFileError as err:
+            log(f"ipbench: {err}; training a new model")
+    model = train()
+    model.save(path)
+    return model
