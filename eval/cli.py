@@ -15,6 +15,17 @@ from pathlib import Path
 __all__ = ["main", "build_parser"]
 
 
+def _add_json_option(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument(
+        "--json",
+        nargs="?",
+        const="-",
+        default=None,
+        metavar="FILE",
+        help="also write the figures as one JSON object (to FILE, or stdout with no FILE)",
+    )
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="ipbench",
@@ -65,14 +76,7 @@ def build_parser() -> argparse.ArgumentParser:
         "stereo fps, pick-and-place skill wall time, reset time.",
     )
     sim.add_argument("--scene", default="uncluttered", help="scene to measure")
-    sim.add_argument(
-        "--json",
-        nargs="?",
-        const="-",
-        default=None,
-        metavar="FILE",
-        help="also write the figures as one JSON object (to FILE, or stdout with no FILE)",
-    )
+    _add_json_option(sim)
     bench_perception = bench_sub.add_parser(
         "perception",
         help="segmentation, features and classification time of a cluttered scene; GP fit",
@@ -80,14 +84,7 @@ def build_parser() -> argparse.ArgumentParser:
         "classification seconds (one core); GP and scikit-learn GP fit seconds on ~1,500 "
         "256-d training vectors.",
     )
-    bench_perception.add_argument(
-        "--json",
-        nargs="?",
-        const="-",
-        default=None,
-        metavar="FILE",
-        help="also write the figures as one JSON object (to FILE, or stdout with no FILE)",
-    )
+    _add_json_option(bench_perception)
     return parser
 
 

@@ -23,6 +23,7 @@ from threadpoolctl import threadpool_limits
 
 from ipbench.assets.objects import CATEGORIES
 from ipbench.perception.classifiers import CLASSIFIERS, make_classifier
+from ipbench.perception.cloud import depth_to_points
 from ipbench.perception.dataset import DatasetConfig, ViewSet, load_or_build
 from ipbench.perception.features import Codebook
 from ipbench.perception.metrics import (
@@ -33,6 +34,7 @@ from ipbench.perception.metrics import (
     per_class_precision_recall,
 )
 from ipbench.perception.model import PerceptionModel, load_or_train
+from ipbench.perception.segmentation import match_segments, segment_scene
 
 __all__ = [
     "PerceptionEvalConfig",
@@ -65,6 +67,8 @@ class PerceptionEvalConfig:
     codebook_samples : descriptors sampled from the training views to fit the codebook.
     classifiers : which classifiers to compare.
     seed : seeds the codebook and the classifiers.
+    segmentation_seeds : episode seeds of both standard scenes whose segmentation is scored
+        against the ground-truth masks.
     """
 
     dataset: DatasetConfig = field(default_factory=DatasetConfig)
@@ -72,6 +76,7 @@ class PerceptionEvalConfig:
     codebook_samples: int = 60_000
     classifiers: tuple[str, ...] = CLASSIFIERS
     seed: int = 0
+    segmentation_seeds: tuple[int, ...] = tuple(range(10_100, 10_110))
 
 
 def model_key(config: PerceptionEvalConfig, classes: tuple[str, ...]) -> str:
@@ -138,6 +143,36 @@ def _scores(probs: np.ndarray, labels: np.ndarray, n_classes: int) -> dict:
     }
 
 
+def segmentation_scores(
+    seeds: tuple[int, ...], config: PerceptionEvalConfig
+) -> dict[str, dict[str, float]]:
+    """Segments of each standard scene's first observation against the ground-truth masks
+    (IoU >= 0.5): mean precision and recall over ``seeds``, total merged and split."""
+    import gymnasium as gym
+
+    import ipbench.envs  # noqa: F401
+    from ipbench.envs.layout import SCENES
+
+    out = {}
+    for scene in SCENES:
+        env = gym.make("ipbench/Sorting-v0", scene=scene, depth_noise=config.dataset.depth_noise)
+        rows = []
+        for seed in seeds:
+            obs, info = env.reset(seed=seed)
+            cloud = depth_to_points(obs["wrist_depth"], obs["wrist_K"], obs["wrist_pose"])
+            segments = segment_scene(cloud, config.dataset.segmentation).segments
+            rows.append(match_segments(segments, info["wrist_mask"], valid=obs["wrist_depth"] > 0))
+        env.close()
+        out[scene] = {
+            "scenes": len(rows),
+            "precision": float(np.mean([r["precision"] for r in rows])),
+            "recall": float(np.mean([r["recall"] for r in rows])),
+            "merged": int(sum(r["merged"] for r in rows)),
+            "split": int(sum(r["split"] for r in rows)),
+        }
+    return out
+
+
 def run_perception_eval(
     out: Path, cache: Path, config: PerceptionEvalConfig = PerceptionEvalConfig()
 ) -> dict:
@@ -193,7 +228,9 @@ def _run_perception_eval(out: Path, cache: Path, config: PerceptionEvalConfig) -
                 else:
                     entry[test_name] = scores
             metrics[subset][name] = entry
+    segmentation = segmentation_scores(config.segmentation_seeds, config)
     (out / "metrics.json").write_text(json.dumps(metrics, indent=2))
+    (out / "segmentation.json").write_text(json.dumps(segmentation, indent=2))
     from ipbench.eval.perception_report import write_report
 
     write_report(
@@ -208,6 +245,7 @@ def _run_perception_eval(out: Path, cache: Path, config: PerceptionEvalConfig) -
             "cluttered_segments": len(tests["cluttered"]),
             "codebook_size": config.codebook_size,
             "dataset_key": config.dataset.key(),
+            "segmentation": segmentation,
         },
     )
     return metrics

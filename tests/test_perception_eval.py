@@ -57,8 +57,14 @@ def test_config_hash_changes_with_the_protocol():
 
 def test_perception_eval_writes_the_report(cache, views, tmp_path):
     metrics = run_perception_eval(
-        tmp_path, cache, PerceptionEvalConfig(dataset=TINY, codebook_size=32)
+        tmp_path,
+        cache,
+        PerceptionEvalConfig(dataset=TINY, codebook_size=32, segmentation_seeds=(10_100,)),
     )
+    seg = json.loads((tmp_path / "segmentation.json").read_text())
+    assert set(seg) == {"uncluttered", "cluttered"}
+    for scene in seg.values():  # quality is tested in test_segmentation; here the wiring
+        assert 0.5 <= scene["precision"] <= 1 and 0.5 <= scene["recall"] <= 1
     saved = json.loads((tmp_path / "metrics.json").read_text())
     assert saved == json.loads(json.dumps(metrics))
     for subset in ("5class", "3class"):
@@ -69,6 +75,6 @@ def test_perception_eval_writes_the_report(cache, views, tmp_path):
             assert 0 <= m["accuracy"] <= 1 and 0 <= m["ece"] <= 1
             assert "cluttered" in m
     text = (tmp_path / "perception.md").read_text()
-    assert "## 5class" in text and "## 3class" in text
+    assert "## 5class" in text and "## 3class" in text and "| cluttered |" in text
     assert (tmp_path / "confusion_5class_gp.png").stat().st_size > 1000
     assert (tmp_path / "reliability_3class.png").exists()
