@@ -227,6 +227,16 @@ class SortingEnv(gym.Env):
         h, w = self.config.render_size
         return self._renderer.render_rgb(self.data, "overview", w, h)
 
+    @property
+    def renderer(self) -> SensorRenderer | None:
+        """The sensor renderer of the current episode (``None`` before ``reset``)."""
+        return self._renderer
+
+    @property
+    def depth_noise(self) -> DepthNoiseModel:
+        """The wrist camera's depth-noise model."""
+        return self._noise
+
     def close(self) -> None:
         if self._renderer is not None:
             self._renderer.close()
@@ -280,7 +290,7 @@ class SortingEnv(gym.Env):
             if self._area is not None:
                 target, grasp_yaw = self._area
                 self._area = None
-            elif not self._viewing("scene"):
+            elif self._view != "scene":
                 run(sk.look(places.scene_view, places.scene_target))
             return run(sk.pick(target, grasp_yaw))
 
@@ -306,9 +316,6 @@ class SortingEnv(gym.Env):
                 run(sk.present_in_hand(turn))
                 self._view = "hand"
         return results
-
-    def _viewing(self, view: str) -> bool:
-        return getattr(self, "_view", "scene") == view
 
     def _place_arms_at_start(self) -> None:
         """Camera arm looking at the table, gripper arm parked clear of the camera's view."""

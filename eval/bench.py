@@ -51,7 +51,7 @@ def bench_sim(scene: str = "uncluttered", seed: int = 0, repeats: int = 3) -> di
         t0 = time.perf_counter()
         obs, info = env.reset(seed=seed + k)
         reset_times.append(time.perf_counter() - t0)
-    model, data, renderer = base.model, base.data, base._renderer
+    model, data, renderer = base.model, base.data, base.renderer
     snapshot = mujoco.MjData(model)
     mujoco.mj_copyData(snapshot, model, data)
     physics = _rate(base._physics_step, 2000)
@@ -64,7 +64,7 @@ def bench_sim(scene: str = "uncluttered", seed: int = 0, repeats: int = 3) -> di
 
     def rgbd():
         _, depth = renderer.render_rgbd(data, WRIST_CAMERA, w, h)
-        base._noise.apply(depth, k.fx, k.fy, rng)
+        base.depth_noise.apply(depth, k.fx, k.fy, rng)
 
     noisy_fps = _rate(rgbd, 100)
     rgbd_fps = _rate(lambda: renderer.render_rgbd(data, WRIST_CAMERA, w, h), 100)

@@ -38,11 +38,11 @@ from ipbench.assets.objects import (
 from ipbench.envs.depth_noise import DepthNoiseConfig, DepthNoiseModel
 from ipbench.envs.ik import look_at_rotation
 from ipbench.envs.layout import Layout, PlacedObject
-from ipbench.envs.robot import RobotController
-from ipbench.envs.sensors import SensorRenderer, camera_pose, intrinsics
+from ipbench.envs.robot import RobotController, ik_model
+from ipbench.envs.sensors import SensorRenderer, camera_pose, intrinsics, specular_geoms
 from ipbench.envs.skills import Skills
 from ipbench.envs.sorting import WRIST_CAMERA, WRIST_SIZE
-from ipbench.envs.world import build_world
+from ipbench.envs.world import Places, build_world
 from ipbench.perception.cloud import PerceptionError, depth_to_points
 from ipbench.perception.features import FeatureConfig, fpfh
 from ipbench.perception.segmentation import SegmentationConfig, segment_scene
@@ -190,9 +190,6 @@ def _views(config: DatasetConfig, inst: ObjectInstance):
 
 def render_instance_views(inst: ObjectInstance, config: DatasetConfig) -> ViewSet:
     """Render and segment every view of one instance (see the module docstring)."""
-    from ipbench.envs.robot import ik_model
-    from ipbench.envs.world import Places
-
     places = Places.from_model(ik_model())
     center = places.spawn_area.center.copy()
     poses = resting_poses(inst)
@@ -214,7 +211,7 @@ def render_instance_views(inst: ObjectInstance, config: DatasetConfig) -> ViewSe
     rng = np.random.default_rng([config.seed, inst.index, CATEGORIES.index(inst.category)])
     h, w = WRIST_SIZE
     k = intrinsics(model, WRIST_CAMERA, w, h)
-    shiny = np.append(_specular(model), False)
+    shiny = np.append(specular_geoms(model), False)  # index -1 = background
     toward_robot = places.scene_view[:2] - places.scene_target[:2]
     toward_robot /= np.linalg.norm(toward_robot)
     qadr = model.jnt_qposadr[model.body_jntadr[world.object_bodies[0]]]
@@ -306,12 +303,6 @@ def render_cluttered_segments(config: DatasetConfig, progress: bool = True) -> V
         known=np.array(known, bool),
         source=np.full(len(labels), "cluttered", "U16"),
     )
-
-
-def _specular(model: mujoco.MjModel) -> np.ndarray:
-    from ipbench.envs.sensors import specular_geoms
-
-    return specular_geoms(model)
 
 
 class _Serial:
