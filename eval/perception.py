@@ -34,7 +34,8 @@ from ipbench.perception.metrics import (
     per_class_precision_recall,
 )
 from ipbench.perception.model import PerceptionModel, load_or_train
-from ipbench.perception.segmentation import match_segments, segment_scene
+from ipbench.perception.segment_eval import match_segments
+from ipbench.perception.segmentation import segment_scene
 
 __all__ = [
     "PerceptionEvalConfig",

@@ -28,11 +28,11 @@ from ipbench.perception.metrics import (
     log_loss,
 )
 from ipbench.perception.model import ModelFileError, PerceptionModel, load_or_train
+from ipbench.perception.segment_eval import match_segments
 from ipbench.perception.segmentation import (
     Segment,
     SegmentationConfig,
     grasp_yaw,
-    match_segments,
     segment_in_hand,
     segment_region,
     segment_scene,

@@ -7,6 +7,7 @@ import pytest
 
 from ipbench.perception import cloud as cloud_module
 from ipbench.perception import features as features_module
+from ipbench.perception import segment_eval as segment_eval_module
 from ipbench.perception import segmentation as segmentation_module
 from ipbench.perception.cloud import PerceptionError
 from ipbench.perception.features import FPFH_DIM, Codebook, FeatureConfig, describe, fpfh
@@ -129,7 +130,9 @@ def test_box_and_cylinder_differ_views_of_one_cylinder_agree(training):
     assert across - cylinders > 0.15
 
 
-@pytest.mark.parametrize("module", [cloud_module, segmentation_module, features_module])
+@pytest.mark.parametrize(
+    "module", [cloud_module, segmentation_module, segment_eval_module, features_module]
+)
 def test_all_names(module):
     """``__all__`` lists exactly the public names each module defines (plus re-exports)."""
     public = {

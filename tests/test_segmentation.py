@@ -4,12 +4,12 @@ import numpy as np
 import pytest
 
 from ipbench.perception.cloud import Cloud, PerceptionError, depth_to_points
+from ipbench.perception.segment_eval import match_segments
 from ipbench.perception.segmentation import (
     GripperGeometry,
     Segment,
     SegmentationConfig,
     grasp_yaw,
-    match_segments,
     segment_in_hand,
     segment_region,
     segment_scene,
