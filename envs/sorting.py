@@ -191,6 +191,12 @@ class SortingEnv(gym.Env):
         self.robot.hold(self.config.settle_time)
         # (ngeom + 1,): shiny geoms; the last entry stands for the background (id -1)
         self._specular_geoms = np.append(specular_geoms(self.model), False)
+        m = self.model
+        self._robot_qadr = np.array([m.jnt_qposadr[m.joint(j).id] for j in self._robot_joints])
+        # geom id -> object id (the last entry stands for the background, id -1)
+        self._mask_lut = np.full(m.ngeom + 1, -1, np.int16)
+        for g, k in self.world.object_geoms.items():
+            self._mask_lut[g] = k
         self._steps = 0
         self._area: tuple[np.ndarray, float] | None = None  # (grasp position, yaw) in the area
         self._statuses = self._all_statuses()
@@ -348,7 +354,7 @@ class SortingEnv(gym.Env):
         obs = {
             "wrist_rgb": rgb,
             "wrist_depth": depth.astype(np.float32),
-            "qpos": np.array([d.qpos[m.jnt_qposadr[m.joint(j).id]] for j in self._robot_joints]),
+            "qpos": d.qpos[self._robot_qadr].copy(),
             "wrist_K": k_wrist.K,
             "wrist_pose": camera_pose(m, d, WRIST_CAMERA),
         }
@@ -379,13 +385,9 @@ class SortingEnv(gym.Env):
                 "center": pos + rot @ np.asarray(obj.instance.center),
                 "status": self._statuses[k],
             }
-        seg = self._wrist_seg
-        lut = np.full(self.model.ngeom + 1, -1, np.int16)
-        for g, k in self.world.object_geoms.items():
-            lut[g] = k
         return {
             "objects": objects,
-            "wrist_mask": lut[seg],
+            "wrist_mask": self._mask_lut[self._wrist_seg],
             "skills": [r.__dict__.copy() for r in results],
             "physics_unstable": self._unstable,
             "sim_time": float(self.data.time),

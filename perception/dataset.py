@@ -190,13 +190,13 @@ def _views(config: DatasetConfig, inst: ObjectInstance):
 
 def render_instance_views(inst: ObjectInstance, config: DatasetConfig) -> ViewSet:
     """Render and segment every view of one instance (see the module docstring)."""
-    places = Places.from_model(ik_model())
-    center = places.spawn_area.center.copy()
+    center = Places.from_model(ik_model()).spawn_area.center.copy()
     poses = resting_poses(inst)
     placed = PlacedObject(
         0, inst, poses[0], tuple(center + [0, 0, poses[0].height]), 0.0, poses[0].quat
     )
     world = build_world(Layout("isolated", 0, (placed,)))
+    places = world.places
     model = world.model
     data = mujoco.MjData(model)
     mujoco.mj_resetDataKeyframe(model, data, model.key("home").id)
