@@ -11,8 +11,10 @@ export PYOPENGL_PLATFORM ?= egl
 
 .PHONY: eval test setup lint clean
 
+# The benchmark with its defaults: both scenes, random vs GP-IPM, 10 seeds, one video per
+# policy and scene; perception is trained on first use and cached in results/cache.
 eval: $(STAMP)
-	$(VENV)/bin/ipbench demo --out results
+	$(VENV)/bin/ipbench eval sorting --workers 2 --video --out results/sorting --cache results/cache
 
 test: $(STAMP)
 	$(PY) -m ruff check .
@@ -38,7 +40,7 @@ $(STAMP): pyproject.toml
 	fi
 	[ -x $(PY) ] || python3 -m venv $(VENV)
 	$(PY) -m pip install -q torch==2.13.0
-	$(PY) -m pip install -q -e '.[dev]'
+	$(PY) -m pip install -q -e '.[dev,ray]'
 	touch $(STAMP)
 
 clean:

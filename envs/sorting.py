@@ -14,7 +14,8 @@ documents it):
   inspect step's observation is the new view; after ``place_in_bin`` the camera looks at
   the table again.
 * Observation: ``wrist_rgb`` (480x640x3 uint8), ``wrist_depth`` (480x640 float32, m, 0 =
-  no depth), ``head_left``/``head_right`` (HxWx3 uint8), ``qpos`` (robot joints),
+  no depth), ``head_left``/``head_right`` (HxWx3 uint8), ``qpos`` (robot joints, in the order of
+  ``ROBOT_JOINTS``),
   ``wrist_K``/``head_*_K`` (3x3 intrinsics), ``wrist_pose``/``head_*_pose`` (4x4
   world-from-camera, OpenCV convention: x right, y down, z forward).
 * ``info``: ``objects`` (per object id: category, instance, known, pose (7,) position and
@@ -46,11 +47,26 @@ from ipbench.envs.sensors import SensorRenderer, camera_pose, intrinsics, specul
 from ipbench.envs.skills import SkillConfig, SkillResult, Skills
 from ipbench.envs.world import Places, World, build_world, object_status
 
-__all__ = ["SortingConfig", "SortingEnv", "InvalidActionError", "COMMANDS", "WRIST_CAMERA"]
+__all__ = [
+    "COMMANDS",
+    "ROBOT_JOINTS",
+    "WRIST_CAMERA",
+    "InvalidActionError",
+    "SortingConfig",
+    "SortingEnv",
+]
 
 COMMANDS = ("place_in_bin", "inspect_in_area", "inspect_in_hand")
 """Meaning of ``action["command"]``."""
 WRIST_CAMERA = f"{CAMERA_ARM}_wrist_camera"
+ROBOT_JOINTS: tuple[str, ...] = (
+    ("turntable_joint",)
+    + arm_joint_names(GRIPPER_ARM)
+    + (f"{GRIPPER_ARM}_gripper_finger_a", f"{GRIPPER_ARM}_gripper_finger_b")
+    + arm_joint_names(CAMERA_ARM)
+    + tuple(f"head_{s}_{j}" for s in HEAD_SIDES for j in ("pan", "tilt"))
+)
+"""Joint names of ``observation["qpos"]``, in order (rad; the two fingers in m)."""
 WRIST_SIZE = (480, 640)
 _UNSAFE = {"on_table", "in_inspection_area", "in_hand"}
 
@@ -113,13 +129,7 @@ class SortingEnv(gym.Env):
         self._renderer: SensorRenderer | None = None
         self.world: World | None = None
         self._frame_listeners: list[tuple[float, Callable[[], None]]] = []
-        self._robot_joints = (
-            ("turntable_joint",)
-            + arm_joint_names(GRIPPER_ARM)
-            + (f"{GRIPPER_ARM}_gripper_finger_a", f"{GRIPPER_ARM}_gripper_finger_b")
-            + arm_joint_names(CAMERA_ARM)
-            + tuple(f"head_{s}_{j}" for s in HEAD_SIDES for j in ("pan", "tilt"))
-        )
+        self._robot_joints = ROBOT_JOINTS
         hh, hw = self.config.head_size
         mat = spaces.Box(-np.inf, np.inf, (3, 3), np.float64)
         pose = spaces.Box(-np.inf, np.inf, (4, 4), np.float64)

@@ -1,7 +1,10 @@
 """The ``ipbench`` command.
 
 ipbench demo [--out DIR] [--scenes uncluttered,cluttered] [--seed N] [--no-video]
-ipbench bench sim [--scene NAME] [--json [FILE]]
+ipbench eval perception [--out DIR] [--cache DIR]
+ipbench eval sorting [--scenes ...] [--policies ...] [--seeds A:B] [--workers N]
+                     [--backend process|ray] [--video] [--out DIR] [--cache DIR]
+ipbench bench sim|perception|eval [--json [FILE]]
 """
 
 from __future__ import annotations
@@ -67,6 +70,48 @@ def build_parser() -> argparse.ArgumentParser:
         "--cache", type=Path, default=Path("results/cache"), help="rendered-view cache folder"
     )
 
+    sorting = eval_sub.add_parser(
+        "sorting",
+        help="run sorting policies as episodes and compare them (thesis Table 5.1)",
+        description="Runs every policy on every scene for every seed (the same seeds for "
+        "every policy: a paired comparison). Perception models are trained on first use and "
+        "cached in --cache; GP-IPM's confidence threshold is chosen on validation seeds "
+        "(1000-1007, disjoint from the test seeds) and cached too. Each finished episode is "
+        "appended to OUT/episodes.jsonl, so an interrupted run resumes where it stopped. "
+        "Writes OUT/summary.json, OUT/sorting.md, plots and (--video) MP4s.",
+    )
+    sorting.add_argument(
+        "--scenes", default="uncluttered,cluttered", help="comma-separated scene names"
+    )
+    sorting.add_argument(
+        "--policies",
+        default="random,gp-ipm",
+        help="comma-separated policies: random, gp-ipm (inspect in hand), gp-ipm-area "
+        "(inspect in the inspection area), svm-ipm (SVM confidences), oracle (true labels)",
+    )
+    sorting.add_argument(
+        "--seeds", default="0:10", help="episode seeds: A:B (A..B-1) or a comma-separated list"
+    )
+    sorting.add_argument("--workers", type=int, default=1, help="episodes run in parallel")
+    sorting.add_argument(
+        "--backend",
+        default="process",
+        help="process (local worker processes) or ray (Ray tasks; pip install 'ipbench[ray]')",
+    )
+    sorting.add_argument(
+        "--ray-address", default=None, help="Ray cluster address (default: a local instance)"
+    )
+    sorting.add_argument(
+        "--video", action="store_true", help="an MP4 of each policy and scene (first seed)"
+    )
+    sorting.add_argument(
+        "--fusion", default="majority", help="view fusion: majority (thesis) or bayes"
+    )
+    sorting.add_argument("--out", type=Path, default=Path("results/sorting"), help="report folder")
+    sorting.add_argument(
+        "--cache", type=Path, default=Path("results/cache"), help="model and view cache folder"
+    )
+
     bench = sub.add_parser("bench", help="speed benchmarks that print figures")
     bench_sub = bench.add_subparsers(dest="target", required=True, metavar="TARGET")
     sim = bench_sub.add_parser(
@@ -85,7 +130,36 @@ def build_parser() -> argparse.ArgumentParser:
         "256-d training vectors.",
     )
     _add_json_option(bench_perception)
+    bench_eval = bench_sub.add_parser(
+        "eval",
+        help="sorting episodes per minute for each policy with 1 and 2 workers",
+        description="Runs a few cluttered episodes per policy serially and with 2 worker "
+        "processes and prints episodes/minute (models from --cache, trained if missing).",
+    )
+    bench_eval.add_argument("--policies", default="random,gp-ipm", help="policies to time")
+    bench_eval.add_argument("--episodes", type=int, default=4, help="episodes per measurement")
+    bench_eval.add_argument(
+        "--cache", type=Path, default=Path("results/cache"), help="model cache folder"
+    )
+    _add_json_option(bench_eval)
     return parser
+
+
+def _seeds(text: str) -> tuple[int, ...]:
+    try:
+        if ":" in text:
+            a, b = (int(v) for v in text.split(":"))
+            seeds = tuple(range(a, b))
+        else:
+            seeds = tuple(int(v) for v in text.split(",") if v.strip())
+    except ValueError:
+        seeds = ()
+    if not seeds or min(seeds) < 0:
+        raise SystemExit(
+            f"ipbench: bad --seeds {text!r}; give A:B with 0 <= A < B (e.g. 0:30) or a "
+            "comma-separated list of non-negative integers"
+        )
+    return seeds
 
 
 def _writable(path: Path) -> None:
@@ -145,6 +219,39 @@ def main(argv: list[str] | None = None) -> int:
             row = ", ".join(f"{n} {m['accuracy']:.3f}" for n, m in by_name.items())
             print(f"{subset} accuracy on unknown instances: {row}")
         print(f"report written to {(args.out / 'perception.md').resolve()}")
+        return 0
+    if args.command == "eval" and args.target == "sorting":
+        from ipbench.eval.sorting import SortingEvalConfig, SortingEvalError, run_sorting_eval
+
+        try:
+            config = SortingEvalConfig(
+                scenes=_scenes(args.scenes),
+                policies=tuple(p.strip() for p in args.policies.split(",") if p.strip()),
+                seeds=_seeds(args.seeds),
+                workers=args.workers,
+                backend=args.backend,
+                ray_address=args.ray_address,
+                video=args.video,
+                fusion=args.fusion,
+            )
+            _writable(args.cache)
+            summary = run_sorting_eval(args.out, args.cache, config)
+        except SortingEvalError as err:
+            raise SystemExit(f"ipbench: {err}") from err
+        for scene, by_policy in summary.items():
+            row = ", ".join(
+                f"{p} {m['accuracy_mean']:.0%} [{m['ci_low']:.0%}, {m['ci_high']:.0%}]"
+                for p, m in by_policy.items()
+            )
+            print(f"{scene}: {row}")
+        print(f"report written to {(args.out / 'sorting.md').resolve()}")
+        return 0
+    if args.command == "bench" and args.target == "eval":
+        from ipbench.eval.bench import report
+        from ipbench.eval.bench_eval import bench_eval
+
+        policies = tuple(p.strip() for p in args.policies.split(",") if p.strip())
+        _print_figures(bench_eval(args.cache, policies, args.episodes), args.json, report)
         return 0
     if args.command == "bench" and args.target == "sim":
         from ipbench.eval.bench import bench_sim, report

@@ -1,8 +1,8 @@
 """The demo episode: scripted sorting with ground-truth labels, written to ``results/``.
 
-Until the policies and the sorting evaluation land, ``make eval`` runs this: one episode per
-standard scene with :class:`~ipbench.policies.scripted.GroundTruthSorter`, an MP4 of each from
-the overview camera and a ``demo_summary.json``.
+``ipbench demo``: one episode per standard scene with
+:class:`~ipbench.policies.scripted.GroundTruthSorter`, an MP4 of each from the overview camera
+and a ``demo_summary.json``.
 """
 
 from __future__ import annotations

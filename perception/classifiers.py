@@ -2,6 +2,9 @@
 
 * ``"gp"``: :class:`~ipbench.perception.gpc.MulticlassLaplaceGPC`, the joint multi-class
   Laplace GP (softmax likelihood, shared SE kernel, ML-II hyper-parameters).
+* ``"gp_mode"``: the same fitted GP with the plug-in predictive (softmax of the latent
+  mean; ``GPCConfig(predictive="mode")``), which is not under-confident the way the Laplace
+  Monte-Carlo predictive is (see :mod:`~ipbench.perception.gpc`).
 * ``"svm"``: an RBF support-vector machine with Platt-scaled probabilities. scikit-learn
   1.9 deprecates ``SVC(probability=True)``, so calibration is explicit:
   ``CalibratedClassifierCV(SVC(kernel="rbf", C=C, gamma="scale"), method="sigmoid", cv=5)``
@@ -44,7 +47,7 @@ __all__ = [
     "make_classifier",
 ]
 
-CLASSIFIERS: tuple[str, ...] = ("gp", "svm", "sklearn_gp")
+CLASSIFIERS: tuple[str, ...] = ("gp", "gp_mode", "svm", "sklearn_gp")
 SVM_C_GRID: tuple[float, ...] = (1.0, 10.0, 100.0)
 
 
@@ -139,9 +142,8 @@ class GPClassifier:
         Full settings; None: defaults with ``seed``.
     """
 
-    name = "gp"
-
     def __init__(self, n_classes: int, seed: int = 0, config: GPCConfig | None = None) -> None:
+        self.name = "gp_mode" if config is not None and config.predictive == "mode" else "gp"
         self.n_classes = int(n_classes)
         self.seed = seed
         self.config = GPCConfig(seed=seed) if config is None else config
@@ -153,11 +155,11 @@ class GPClassifier:
 
     def _model(self) -> MulticlassLaplaceGPC:
         if self.model_ is None:
-            raise ClassifierError("classifier 'gp' is not fitted: call fit(X, y) first")
+            raise ClassifierError(f"classifier {self.name!r} is not fitted: call fit(X, y) first")
         return self.model_
 
     def predict_proba(self, X: np.ndarray) -> np.ndarray:
-        """``(m, n_classes)`` class probabilities (Monte Carlo, reproducible); rows sum to one."""
+        """``(m, n_classes)`` class probabilities (reproducible); rows sum to one."""
         return self._model().predict_proba(X)
 
     def predict(self, X: np.ndarray) -> np.ndarray:
@@ -172,6 +174,11 @@ class GPClassifier:
     def from_state(cls, state: dict[str, np.ndarray]) -> GPClassifier:
         """Rebuild a fitted classifier from :meth:`get_state` output."""
         model = MulticlassLaplaceGPC.from_state(state)
+        return cls.from_model(model)
+
+    @classmethod
+    def from_model(cls, model: MulticlassLaplaceGPC) -> GPClassifier:
+        """Wrap an already fitted :class:`MulticlassLaplaceGPC`."""
         clf = cls(model.n_classes_, model.config.seed, model.config)
         clf.model_ = model
         return clf
@@ -189,6 +196,8 @@ def make_classifier(name: str, n_classes: int, seed: int = 0) -> Classifier:
         raise ClassifierError(f"n_classes must be >= 2, got {n_classes}")
     if name == "gp":
         return GPClassifier(n_classes, seed)
+    if name == "gp_mode":
+        return GPClassifier(n_classes, seed, GPCConfig(seed=seed, predictive="mode"))
     if name == "svm":
         return SVMClassifier(n_classes, seed)
     if name == "sklearn_gp":

@@ -7,6 +7,7 @@ reported and the model is trained again, so nothing silently uses a wrong model.
 
 from __future__ import annotations
 
+import pickle
 import zipfile
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -14,16 +15,17 @@ from pathlib import Path
 
 import numpy as np
 
+from ipbench.perception.classifiers import Classifier
 from ipbench.perception.cloud import PerceptionError
 from ipbench.perception.features import Codebook
 from ipbench.perception.gpc import MulticlassLaplaceGPC
 
 __all__ = ["MODEL_VERSION", "ModelFileError", "PerceptionModel", "load_or_train"]
 
-MODEL_VERSION = 1
+MODEL_VERSION = 2
 """Format version of the saved file; bumped when the layout changes."""
 
-_CODEBOOK, _GP = "codebook__", "gp__"
+_CODEBOOK, _GP, _PICKLE = "codebook__", "gp__", "pickle__"
 
 
 class ModelFileError(PerceptionError):
@@ -32,15 +34,17 @@ class ModelFileError(PerceptionError):
 
 @dataclass(frozen=True)
 class PerceptionModel:
-    """Codebook + GP classifier for ``classes`` (category names, in label order).
+    """Codebook + classifier for ``classes`` (category names, in label order).
 
-    ``key`` is the hash of the configuration (dataset, features, classes, classifier) that
-    trained it.
+    The classifier is our GP (saved as its arrays) or any other object with
+    ``predict_proba`` (e.g. the SVM baseline; saved pickled — the file is a local cache that
+    only ipbench writes). ``key`` is the hash of the configuration (dataset, features,
+    classes, classifier) that trained it.
     """
 
     classes: tuple[str, ...]
     codebook: Codebook
-    classifier: MulticlassLaplaceGPC
+    classifier: MulticlassLaplaceGPC | Classifier
     key: str
 
     def probabilities(self, views: list[np.ndarray]) -> np.ndarray:
@@ -54,7 +58,10 @@ class PerceptionModel:
         path = Path(path)
         path.parent.mkdir(parents=True, exist_ok=True)
         arrays = {f"{_CODEBOOK}{k}": v for k, v in self.codebook.to_arrays().items()}
-        arrays.update({f"{_GP}{k}": v for k, v in self.classifier.get_state().items()})
+        if isinstance(self.classifier, MulticlassLaplaceGPC):
+            arrays.update({f"{_GP}{k}": v for k, v in self.classifier.get_state().items()})
+        else:
+            arrays[_PICKLE] = np.frombuffer(pickle.dumps(self.classifier), np.uint8)
         tmp = path.with_name(path.stem + ".tmp.npz")
         np.savez(
             tmp,
@@ -85,12 +92,15 @@ class PerceptionModel:
             codebook = Codebook.from_arrays(
                 {k[len(_CODEBOOK) :]: v for k, v in arrays.items() if k.startswith(_CODEBOOK)}
             )
-            gp = MulticlassLaplaceGPC.from_state(
-                {k[len(_GP) :]: v for k, v in arrays.items() if k.startswith(_GP)}
-            )
-        except (KeyError, ValueError) as err:
+            if _PICKLE in arrays:
+                clf = pickle.loads(arrays[_PICKLE].tobytes())
+            else:
+                clf = MulticlassLaplaceGPC.from_state(
+                    {k[len(_GP) :]: v for k, v in arrays.items() if k.startswith(_GP)}
+                )
+        except (KeyError, ValueError, pickle.UnpicklingError, EOFError) as err:
             raise ModelFileError(f"model file {path} is incomplete ({err})") from err
-        return cls(tuple(str(c) for c in arrays["classes"]), codebook, gp, key)
+        return cls(tuple(str(c) for c in arrays["classes"]), codebook, clf, key)
 
 
 def load_or_train(

@@ -1,3 +1,85 @@
-"""Sorting policies (random, GP-IPM, SVM-IPM, oracle); filled in by the policies issue."""
+"""Sorting policies: random sorting, GP-IPM (in hand / in the inspection area), SVM-IPM,
+the oracle, and the scripted ground-truth sorter of the demo.
 
-__all__: list[str] = []
+:func:`make_policy` builds one by name from the trained perception models.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from ipbench.perception.features import DEFAULT_FEATURES, FeatureConfig
+from ipbench.perception.model import PerceptionModel
+from ipbench.perception.segmentation import DEFAULT_SEGMENTATION, SegmentationConfig
+from ipbench.policies.base import Decision, NothingToSort, Policy, PolicyError
+from ipbench.policies.fusion import FUSIONS
+from ipbench.policies.interactive import InteractiveConfig, InteractiveSorter
+from ipbench.policies.oracle import OracleSorter
+from ipbench.policies.perceiver import Detection, Perceiver
+from ipbench.policies.random_sorting import RandomSorter
+
+__all__ = [
+    "FUSIONS",
+    "POLICIES",
+    "Decision",
+    "Detection",
+    "NothingToSort",
+    "Policy",
+    "PolicyError",
+    "PolicyModels",
+    "make_policy",
+]
+
+POLICIES: tuple[str, ...] = ("random", "gp-ipm", "gp-ipm-area", "svm-ipm", "oracle")
+"""Policy names of the benchmark."""
+
+
+@dataclass(frozen=True)
+class PolicyModels:
+    """What the policies perceive with.
+
+    ``gp``/``svm``: trained models (``svm`` only needed by ``svm-ipm``); ``thresholds``: the
+    validated confidence threshold per classifier (``{"gp": 0.7, "svm": 0.8}``);
+    ``inspection_area``: (3,) centre of the inspection area (world, m).
+    """
+
+    gp: PerceptionModel
+    inspection_area: tuple[float, float, float]
+    thresholds: dict[str, float]
+    svm: PerceptionModel | None = None
+    segmentation: SegmentationConfig = DEFAULT_SEGMENTATION
+    features: FeatureConfig = DEFAULT_FEATURES
+
+
+def make_policy(
+    name: str, models: PolicyModels, n_views: int = 3, fusion: str = "majority"
+) -> Policy:
+    """The policy ``name`` (one of :data:`POLICIES`)."""
+
+    def perceiver(model: PerceptionModel | None, what: str) -> Perceiver:
+        if model is None:
+            raise PolicyError(f"policy {name!r} needs a trained {what} model (PolicyModels.{what})")
+        return Perceiver(model, models.inspection_area, models.segmentation, models.features)
+
+    def interactive(classifier: str, inspection: str) -> InteractiveSorter:
+        if classifier not in models.thresholds:
+            raise PolicyError(f"policy {name!r} needs thresholds[{classifier!r}]")
+        config = InteractiveConfig(
+            threshold=models.thresholds[classifier],
+            inspection=inspection,
+            n_views=n_views,
+            fusion=fusion,
+        )
+        return InteractiveSorter(perceiver(getattr(models, classifier), classifier), config, name)
+
+    if name == "random":
+        return RandomSorter(perceiver(models.gp, "gp"), name)
+    if name == "oracle":
+        return OracleSorter(perceiver(models.gp, "gp"), name)
+    if name == "gp-ipm":
+        return interactive("gp", "hand")
+    if name == "gp-ipm-area":
+        return interactive("gp", "area")
+    if name == "svm-ipm":
+        return interactive("svm", "hand")
+    raise PolicyError(f"unknown policy {name!r}; valid: {', '.join(POLICIES)}")

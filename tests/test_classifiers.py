@@ -99,7 +99,7 @@ def test_gp_classifier_state_round_trip(data) -> None:
 
 
 def test_unknown_classifier_lists_valid_names() -> None:
-    with pytest.raises(ClassifierError, match="gp, svm, sklearn_gp"):
+    with pytest.raises(ClassifierError, match="gp, gp_mode, svm, sklearn_gp"):
         make_classifier("random_forest", n_classes=5)
     with pytest.raises(ClassifierError, match=">= 2"):
         make_classifier("gp", n_classes=1)
@@ -189,3 +189,18 @@ def test_synthetic_difficulty_is_tunable() -> None:
     assert scores[0] < 0.4 < 0.8 < scores[1]
     with pytest.raises(ValueError):
         SyntheticConfig(distractor_rate=1.5)
+
+
+def test_gp_mode_shares_the_fit_and_is_more_confident(data) -> None:
+    """The plug-in predictive is the softmax of the same latent mean; MC through the Laplace
+    posterior averages over the latent spread, so it is less confident on every point."""
+    X, y, Xt, _ = data
+    mc = make_classifier("gp", n_classes=5, seed=0).fit(X[:150], y[:150])
+    mode = GPClassifier.from_model(mc.model_.with_predictive("mode"))
+    assert mode.name == "gp_mode" and mc.name == "gp"
+    mean, _ = mc.model_.predict_latent(Xt)
+    expected = np.exp(mean - mean.max(axis=1, keepdims=True))
+    np.testing.assert_allclose(mode.predict_proba(Xt), expected / expected.sum(1, keepdims=True))
+    assert np.mean(mode.predict_proba(Xt).max(1)) > np.mean(mc.predict_proba(Xt).max(1))
+    with pytest.raises(gpc.GPCError, match="mc, mode"):
+        mc.model_.with_predictive("median")

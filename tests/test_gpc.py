@@ -137,6 +137,7 @@ def test_far_point_falls_back_to_the_prior(separable) -> None:
     entropy = -np.sum(P * np.log(P), axis=1)
     assert np.all(P.max(axis=1) <= 1 / 3 + 0.1)
     assert np.all(entropy >= 0.95 * np.log(3))
+    np.testing.assert_allclose(model.with_predictive("mode").predict_proba(far), 1 / 3)
     # ... while training points are predicted confidently.
     assert np.mean(model.predict_proba(model._X).max(axis=1)) > 0.6
 

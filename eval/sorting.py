@@ -1,0 +1,494 @@
+"""``ipbench eval sorting``: run sorting policies as episodes and compare them (thesis Table 5.1).
+
+Policies x scenes x seeds, the same seeds for every policy (paired comparison). Steps:
+
+1. The perception models (GP; SVM when ``svm-ipm`` runs) are loaded from the cache or trained
+   (:func:`ipbench.eval.perception.trained_model`).
+2. The confidence threshold of each interactive policy's classifier is chosen on validation
+   seeds disjoint from the test seeds (:func:`ipbench.policies.threshold.choose_threshold`,
+   first views of both standard scenes) and saved in the cache.
+3. Episodes run serially, in ``workers`` processes, or as Ray tasks; each record is appended to
+   ``episodes.jsonl`` as soon as it finishes, so an interrupted run resumes where it stopped.
+   ``run.json`` fingerprints the configuration; resuming into a folder made by another
+   configuration is refused rather than mixing results.
+4. ``summary.json``, ``sorting.md`` and plots (:mod:`ipbench.eval.sorting_report`), and
+   optionally one MP4 per policy and scene with the semantic overlay
+   (:mod:`ipbench.eval.overlay`).
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+import time
+from collections import Counter
+from collections.abc import Callable, Iterator
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+
+import gymnasium as gym
+import numpy as np
+from threadpoolctl import threadpool_limits
+from tqdm import tqdm
+
+import ipbench.envs  # noqa: F401  (registers the environments)
+from ipbench.assets.objects import CATEGORIES
+from ipbench.envs.layout import SCENES
+from ipbench.envs.sorting import _static_places
+from ipbench.eval.perception import PerceptionEvalConfig, model_key, trained_model
+from ipbench.eval.sorting_report import ThresholdSweep, load_episodes, write_report
+from ipbench.policies import FUSIONS, POLICIES, NothingToSort, PolicyModels, make_policy
+from ipbench.policies.oracle import true_category
+from ipbench.policies.perceiver import Perceiver
+from ipbench.policies.threshold import ThresholdChoice, choose_threshold
+
+__all__ = [
+    "BACKENDS",
+    "EPISODE_VERSION",
+    "SortingEvalConfig",
+    "SortingEvalError",
+    "Task",
+    "prepare_models",
+    "run_episode",
+    "run_sorting_eval",
+]
+
+BACKENDS: tuple[str, ...] = ("process", "ray")
+EPISODE_VERSION = 1
+"""Version of the episode record; part of the run fingerprint."""
+_CLASSIFIER = {"gp-ipm": "gp", "gp-ipm-area": "gp", "svm-ipm": "svm"}
+
+
+class SortingEvalError(ValueError):
+    """Bad evaluation settings or output folder; the message says what is valid."""
+
+
+@dataclass(frozen=True)
+class SortingEvalConfig:
+    """What ``ipbench eval sorting`` runs.
+
+    Attributes
+    ----------
+    scenes, policies : names (see ``SCENES`` and :data:`~ipbench.policies.POLICIES`).
+    seeds : episode seeds (the same for every policy and scene).
+    validation_seeds : seeds whose first views choose the thresholds; disjoint from ``seeds``.
+    target_precision : the threshold is the lowest confidence whose first-view labels are at
+        least this often right on the validation views.
+    n_views, fusion : inspection views fused per object, and how.
+    steps_per_object : the episode's step limit is this x objects + 10.
+    workers : parallel episodes (processes, or Ray tasks).
+    backend : ``"process"`` or ``"ray"``; ``ray_address``: a cluster (None: a local instance).
+    video : one MP4 per policy and scene (its first seed) with the semantic overlay.
+    perception : the perception models' training configuration.
+    """
+
+    scenes: tuple[str, ...] = ("uncluttered", "cluttered")
+    policies: tuple[str, ...] = ("random", "gp-ipm")
+    seeds: tuple[int, ...] = tuple(range(10))
+    validation_seeds: tuple[int, ...] = tuple(range(1000, 1008))
+    target_precision: float = 0.95
+    n_views: int = 3
+    fusion: str = "majority"
+    steps_per_object: int = 6
+    workers: int = 1
+    backend: str = "process"
+    ray_address: str | None = None
+    video: bool = False
+    perception: PerceptionEvalConfig = field(default_factory=PerceptionEvalConfig)
+
+    def __post_init__(self) -> None:
+        for kind, names, valid in (
+            ("scene", self.scenes, tuple(SCENES)),
+            ("policy", self.policies, POLICIES),
+        ):
+            if not names:
+                raise SortingEvalError(f"no {kind} given; valid: {', '.join(valid)}")
+            bad = [n for n in names if n not in valid]
+            if bad:
+                raise SortingEvalError(f"unknown {kind} {bad[0]!r}; valid: {', '.join(valid)}")
+        if not self.seeds or any(int(s) < 0 for s in self.seeds):
+            raise SortingEvalError(f"seeds must be non-negative integers, got {self.seeds!r}")
+        if set(self.seeds) & set(self.validation_seeds):
+            raise SortingEvalError(
+                "validation seeds overlap the test seeds: "
+                f"{sorted(set(self.seeds) & set(self.validation_seeds))[:5]}; pick test seeds "
+                f"outside {min(self.validation_seeds)}..{max(self.validation_seeds)}"
+            )
+        if self.backend not in BACKENDS:
+            raise SortingEvalError(f"backend {self.backend!r}; valid: {', '.join(BACKENDS)}")
+        if self.workers < 1:
+            raise SortingEvalError(f"workers must be >= 1, got {self.workers}")
+        if self.fusion not in FUSIONS:
+            raise SortingEvalError(f"fusion {self.fusion!r}; valid: {', '.join(FUSIONS)}")
+        if self.steps_per_object < 1:
+            raise SortingEvalError("steps_per_object must be >= 1")
+
+    def fingerprint(self, models_key: str) -> str:
+        """Hash of everything that changes an episode's result (not seeds, workers, video)."""
+        keep = {
+            k: v
+            for k, v in asdict(self).items()
+            if k
+            not in ("scenes", "policies", "seeds", "workers", "backend", "ray_address", "video")
+        }
+        text = json.dumps([keep, models_key, EPISODE_VERSION], sort_keys=True, default=str)
+        return hashlib.sha256(text.encode()).hexdigest()[:16]
+
+
+@dataclass(frozen=True)
+class Task:
+    """One episode to run."""
+
+    scene: str
+    policy: str
+    seed: int
+    video: Path | None = None
+
+    @property
+    def key(self) -> tuple[str, str, int]:
+        return (self.scene, self.policy, self.seed)
+
+
+# -- models and thresholds ---------------------------------------------------------------------
+def _validation_evidence(model, config: SortingEvalConfig) -> tuple[np.ndarray, np.ndarray]:
+    """First-view confidence and correctness of every segment of the validation episodes."""
+    seg, feat = config.perception.dataset.segmentation, config.perception.dataset.features
+    perceiver = Perceiver(model, _static_places().inspection_area.center, seg, feat)
+    conf, correct = [], []
+    for scene in SCENES:
+        env = gym.make(
+            "ipbench/Sorting-v0", scene=scene, depth_noise=config.perception.dataset.depth_noise
+        )
+        for seed in config.validation_seeds:
+            obs, info = env.reset(seed=seed)
+            for d in perceiver.scene(obs):
+                truth = true_category(d.segment.pixels, info)
+                if truth is not None:
+                    conf.append(d.confidence)
+                    correct.append(d.label == truth)
+        env.close()
+    return np.array(conf), np.array(correct, bool)
+
+
+def _threshold(cache: Path, model, classifier: str, config: SortingEvalConfig) -> ThresholdChoice:
+    text = json.dumps(
+        [model.key, list(config.validation_seeds), config.target_precision], sort_keys=True
+    )
+    path = (
+        Path(cache)
+        / f"threshold-{classifier}-{hashlib.sha256(text.encode()).hexdigest()[:16]}.json"
+    )
+    if path.exists():
+        try:
+            d = json.loads(path.read_text())
+            return ThresholdChoice(
+                float(d["threshold"]),
+                float(d["target_precision"]),
+                int(d["n"]),
+                np.array(d["thresholds"], float),
+                np.array(d["precision"], float),
+                np.array(d["inspected"], float),
+            )
+        except (ValueError, KeyError, TypeError) as err:
+            print(f"ipbench: threshold file {path} is corrupt ({err}); choosing again")
+    conf, correct = _validation_evidence(model, config)
+    choice = choose_threshold(conf, correct, config.target_precision)
+    record = {
+        k: (v.tolist() if isinstance(v, np.ndarray) else v) for k, v in asdict(choice).items()
+    }
+    tmp = path.with_suffix(".tmp")
+    tmp.write_text(json.dumps(record))
+    tmp.replace(path)
+    return choice
+
+
+def prepare_models(
+    cache: Path, config: SortingEvalConfig
+) -> tuple[PolicyModels, dict[str, ThresholdChoice]]:
+    """Trained models and validated thresholds for ``config.policies`` (cached in ``cache``)."""
+    cache = Path(cache)
+    cache.mkdir(parents=True, exist_ok=True)
+    with threadpool_limits(1):
+        models = {"gp": trained_model(cache, config.perception, CATEGORIES, "gp")}
+        if "svm-ipm" in config.policies:
+            models["svm"] = trained_model(cache, config.perception, CATEGORIES, "svm")
+        needed = {_CLASSIFIER[p] for p in config.policies if p in _CLASSIFIER}
+        choices = {c: _threshold(cache, models[c], c, config) for c in sorted(needed)}
+    policy_models = PolicyModels(
+        gp=models["gp"],
+        svm=models.get("svm"),
+        inspection_area=tuple(float(v) for v in _static_places().inspection_area.center),
+        thresholds={c: ch.threshold for c, ch in choices.items()},
+        segmentation=config.perception.dataset.segmentation,
+        features=config.perception.dataset.features,
+    )
+    return policy_models, choices
+
+
+# -- one episode --------------------------------------------------------------------------------
+def run_episode(task: Task, models: PolicyModels, config: SortingEvalConfig) -> dict:
+    """Run one episode and return its record (see :mod:`ipbench.eval.sorting_report`)."""
+    with threadpool_limits(1):
+        return _run_episode(task, models, config)
+
+
+def _run_episode(task: Task, models: PolicyModels, config: SortingEvalConfig) -> dict:
+    t0 = time.perf_counter()
+    n_objects = SCENES[task.scene].n_objects
+    env = gym.make(
+        "ipbench/Sorting-v0",
+        scene=task.scene,
+        render_mode="rgb_array" if task.video else None,
+        max_steps=config.steps_per_object * n_objects + 10,
+        depth_noise=config.perception.dataset.depth_noise,
+    )
+    policy = make_policy(task.policy, models, config.n_views, config.fusion)
+    recorder = None
+    if task.video:
+        from ipbench.eval.overlay import SemanticVideoRecorder
+
+        recorder = SemanticVideoRecorder(env, fps=15)
+    policy.reset(task.seed)
+    obs, info = env.reset(seed=task.seed)
+    skills: Counter = Counter()
+    grasp_failures = steps = 0
+    terminated = truncated = stopped = False
+    while not (terminated or truncated):
+        try:
+            action = policy.act(obs, info if task.policy == "oracle" else None)
+        except NothingToSort:
+            stopped = True
+            break
+        for decision in policy.decisions:
+            if decision.true_category is None:
+                decision.true_category = true_category(decision.pixels, info)
+        if recorder is not None:
+            recorder.update(obs, policy.detections)
+        obs, _, terminated, truncated, info = env.step(action)
+        steps += 1
+        for s in info["skills"]:
+            skills[s["name"]] += 1
+            grasp_failures += s["name"] == "pick" and not s["success"]
+    if recorder is not None:
+        recorder.update(obs, [])
+        recorder.save(task.video)
+    env.close()
+    objects = list(info["objects"].values())
+    per_category: dict[str, dict[str, int]] = {}
+    for o in objects:
+        entry = per_category.setdefault(o["category"], {"total": 0, "correct": 0})
+        entry["total"] += 1
+        entry["correct"] += o["status"] == f"in_bin:{o['category']}"
+    correct = sum(e["correct"] for e in per_category.values())
+    in_bin = sum(o["status"].startswith("in_bin:") for o in objects)
+    threshold = getattr(getattr(policy, "config", None), "threshold", None)
+    return {
+        "scene": task.scene,
+        "policy": task.policy,
+        "seed": task.seed,
+        "objects": len(objects),
+        "correct": correct,
+        "accuracy": correct / len(objects),
+        "per_category": per_category,
+        "wrong_bin": in_bin - correct,
+        "left": sum(o["status"] in ("on_table", "in_inspection_area", "in_hand") for o in objects),
+        "dropped": sum(o["status"] == "dropped" for o in objects),
+        "inspections": sum(d.kind == "inspect" for d in policy.decisions),
+        "grasp_failures": int(grasp_failures),
+        "steps": steps,
+        "skills": dict(skills),
+        "sim_time_s": round(float(info["sim_time"]), 2),
+        "wall_time_s": round(time.perf_counter() - t0, 2),
+        "truncated": bool(truncated),
+        "stopped": stopped,
+        "threshold": threshold,
+        "decisions": [d.record() for d in policy.decisions],
+        "video": str(task.video) if task.video else None,
+    }
+
+
+# -- executors ------------------------------------------------------------------------------------
+_WORKER: dict = {}
+
+
+def _init_worker(models: PolicyModels, config: SortingEvalConfig) -> None:
+    _WORKER["models"], _WORKER["config"] = models, config
+
+
+def _worker_episode(task: Task) -> dict:
+    return run_episode(task, _WORKER["models"], _WORKER["config"])
+
+
+def _run_serial(tasks, models, config) -> Iterator[dict]:
+    for task in tasks:
+        yield run_episode(task, models, config)
+
+
+def _run_processes(tasks, models, config) -> Iterator[dict]:
+    import multiprocessing as mp
+    from concurrent.futures import ProcessPoolExecutor, as_completed
+
+    ctx = mp.get_context("spawn")  # no forked GL contexts or BLAS thread pools
+    with ProcessPoolExecutor(
+        config.workers, mp_context=ctx, initializer=_init_worker, initargs=(models, config)
+    ) as pool:
+        futures = [pool.submit(_worker_episode, t) for t in tasks]
+        for future in as_completed(futures):
+            yield future.result()
+
+
+def _run_ray(tasks, models, config) -> Iterator[dict]:
+    try:
+        import ray
+    except ImportError as err:
+        raise SortingEvalError(
+            "--backend ray needs Ray: pip install 'ipbench[ray]' (or use --backend process)"
+        ) from err
+    started = not ray.is_initialized()
+    if started:
+        kwargs = (
+            {"address": config.ray_address} if config.ray_address else {"num_cpus": config.workers}
+        )
+        ray.init(
+            **kwargs,
+            include_dashboard=False,
+            logging_level="ERROR",
+            runtime_env={"env_vars": {"MUJOCO_GL": os.environ.get("MUJOCO_GL", "egl")}},
+        )
+    try:
+        remote = ray.remote(num_cpus=1)(run_episode)
+        models_ref, config_ref = ray.put(models), ray.put(config)
+        pending = [remote.remote(t, models_ref, config_ref) for t in tasks]
+        while pending:
+            done, pending = ray.wait(pending, num_returns=1)
+            yield ray.get(done[0])
+    finally:
+        if started:
+            ray.shutdown()
+
+
+def _executor(config: SortingEvalConfig) -> Callable:
+    if config.backend == "ray":
+        return _run_ray
+    return _run_serial if config.workers == 1 else _run_processes
+
+
+# -- the evaluation -------------------------------------------------------------------------------
+def _check_out(out: Path, fingerprint: str) -> None:
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+        probe = out / ".write-test"
+        probe.write_text("")
+        probe.unlink()
+    except OSError as err:
+        raise SortingEvalError(
+            f"cannot write to the output folder {out} ({err.strerror}); pass a writable --out"
+        ) from err
+    run = out / "run.json"
+    if run.exists():
+        try:
+            previous = json.loads(run.read_text()).get("fingerprint")
+        except (ValueError, AttributeError):
+            previous = None
+        if previous != fingerprint and (out / "episodes.jsonl").exists():
+            raise SortingEvalError(
+                f"{out} holds episodes of another configuration (fingerprint {previous}, this "
+                f"run {fingerprint}); pass another --out, or delete {out / 'episodes.jsonl'}"
+            )
+
+
+def _drop_partial_line(log: Path) -> None:
+    """Cut a record left half-written by an interrupted run (it is run again)."""
+    if not log.exists():
+        return
+    data = log.read_bytes()
+    if data and not data.endswith(b"\n"):
+        cut = data.rfind(b"\n") + 1
+        print(f"ipbench: {log}: dropping an unfinished last record (it will be run again)")
+        with log.open("r+b") as f:
+            f.truncate(cut)
+
+
+def run_sorting_eval(
+    out: Path, cache: Path, config: SortingEvalConfig = SortingEvalConfig(), progress: bool = True
+) -> dict:
+    """Run (or resume) the evaluation into ``out``; returns the summary."""
+    out = Path(out)
+    models, choices = prepare_models(cache, config)
+    fingerprint = config.fingerprint(
+        json.dumps(
+            [models.gp.key, models.svm.key if models.svm else None, models.thresholds],
+            sort_keys=True,
+        )
+    )
+    _check_out(out, fingerprint)
+    (out / "run.json").write_text(
+        json.dumps(
+            {
+                "fingerprint": fingerprint,
+                "thresholds": models.thresholds,
+                "model_keys": {"gp": models.gp.key, "svm": models.svm.key if models.svm else None},
+                "perception_key": model_key(config.perception, CATEGORIES),
+                "config": asdict(config),
+            },
+            indent=2,
+            default=str,
+        )
+    )
+    log = out / "episodes.jsonl"
+    _drop_partial_line(log)
+    done = (
+        {(e["scene"], e["policy"], e["seed"]) for e in load_episodes(log)}
+        if log.exists()
+        else set()
+    )
+    first_seed = min(config.seeds)
+    tasks = [
+        Task(
+            scene,
+            policy,
+            int(seed),
+            out / "videos" / f"{scene}_{policy}_seed{seed}.mp4"
+            if config.video and seed == first_seed
+            else None,
+        )
+        for scene in config.scenes
+        for policy in config.policies
+        for seed in config.seeds
+        if (scene, policy, int(seed)) not in done
+    ]
+    if done:
+        print(f"ipbench: resuming: {len(done)} episodes already in {log}, {len(tasks)} to run")
+    with (
+        log.open("a") as f,
+        tqdm(total=len(tasks), desc="episodes", unit="ep", disable=not progress) as bar,
+    ):
+        for record in _executor(config)(tasks, models, config):
+            f.write(json.dumps(record) + "\n")
+            f.flush()
+            os.fsync(f.fileno())
+            bar.set_postfix_str(f"{record['scene']} {record['policy']} {record['accuracy']:.0%}")
+            bar.update()
+    episodes = [
+        e
+        for e in load_episodes(log)
+        if e["scene"] in config.scenes
+        and e["policy"] in config.policies
+        and e["seed"] in config.seeds
+    ]
+    sweep = None
+    if "gp" in choices:
+        c = choices["gp"]
+        sweep = ThresholdSweep(
+            thresholds=c.thresholds,
+            accuracy=np.nan_to_num(c.precision, nan=1.0),
+            inspected_fraction=c.inspected,
+            chosen=c.threshold,
+            source=f"first-view segments of {c.n} objects in validation seeds "
+            f"{min(config.validation_seeds)}-{max(config.validation_seeds)} (both scenes): "
+            "accuracy of the labels at or above the threshold, and the fraction below it "
+            f"(inspected); the chosen threshold is the lowest reaching {c.target_precision:.0%}",
+        )
+    write_report(episodes, out, sweep)
+    return json.loads((out / "summary.json").read_text())

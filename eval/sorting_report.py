@@ -1,0 +1,687 @@
+"""The sorting report: ``sorting.md``, ``summary.json`` and figures from episode records.
+
+Input is one JSON record per sorting episode (``episodes.jsonl``, see :func:`load_episodes`)
+with at least ``scene, policy, seed, objects, correct, accuracy, per_category, inspections,
+grasp_failures, wall_time_s, sim_time_s, decisions``. Output, per scene, is a table laid out
+like the thesis' Table 5.1 (rows = policies, columns = categories as ``correct/total`` summed
+over seeds, then the total), with the spread over seeds as a percentile bootstrap interval of
+the per-seed mean accuracy and a paired sign-flip permutation test of ``gp-ipm`` against
+``random`` (episodes paired by seed: same scene, same objects).
+
+Statistics are pure numpy and deterministic for a given ``seed``; figures are drawn with
+matplotlib's object API on an Agg canvas (no pyplot, no display, no global backend change).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import warnings
+from collections.abc import Iterable, Mapping, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+from matplotlib.figure import Figure
+
+from ipbench.assets.objects.catalog import CATEGORIES
+
+__all__ = [
+    "THESIS_TABLE_5_1",
+    "PairedTest",
+    "ReportPaths",
+    "ThesisResult",
+    "ThresholdSweep",
+    "bootstrap_ci",
+    "load_episodes",
+    "paired_test",
+    "summarize",
+    "write_report",
+]
+
+_POLICY_ORDER = ("oracle", "gp-ipm", "gp-ipm-area", "svm-ipm", "random")
+_SCENE_ORDER = ("uncluttered", "cluttered")
+_REQUIRED = (
+    "scene",
+    "policy",
+    "seed",
+    "objects",
+    "correct",
+    "accuracy",
+    "per_category",
+    "inspections",
+    "grasp_failures",
+    "wall_time_s",
+    "sim_time_s",
+    "decisions",
+)
+_EXACT_MAX_N = 16
+"""Up to this many pairs the permutation test enumerates all ``2**n`` sign patterns."""
+_DPI = 110
+
+
+# --------------------------------------------------------------------------- thesis numbers
+
+
+@dataclass(frozen=True)
+class ThesisResult:
+    """One total of the thesis' Table 5.1: ``correct`` of ``total`` objects sorted right.
+
+    ``label`` is the thesis' own name of the method.
+    """
+
+    label: str
+    correct: int
+    total: int
+
+    @property
+    def percent(self) -> float:
+        """``100 * correct / total`` (%)."""
+        return 100.0 * self.correct / self.total
+
+
+THESIS_TABLE_5_1: dict[str, dict[str, ThesisResult]] = {
+    "uncluttered": {
+        "gp-ipm": ThesisResult("GP-based interactive sorting", 9, 9),
+        "random": ThesisResult("random", 9, 9),
+    },
+    "cluttered": {
+        "gp-ipm": ThesisResult("GP-based interactive sorting", 12, 14),
+        "random": ThesisResult("random", 8, 14),
+    },
+}
+"""Totals of the thesis' Table 5.1 (Glasgow 2018) by scene and our policy name.
+
+Its per-category counts are not known to us, so only the totals are reproduced.
+"""
+
+
+# --------------------------------------------------------------------------- statistics
+
+
+def bootstrap_ci(
+    values: Iterable[float], n_boot: int = 10_000, level: float = 0.95, seed: int = 0
+) -> tuple[float, float, float]:
+    """Mean of ``values`` and its percentile bootstrap interval.
+
+    Parameters
+    ----------
+    values : (n,) finite numbers, typically one per seed (e.g. accuracies in ``[0, 1]``).
+    n_boot : number of resamples (with replacement, size ``n`` each).
+    level : coverage of the interval, in ``(0, 1)``.
+    seed : seeds the resampling; equal inputs give equal outputs.
+
+    Returns
+    -------
+    mean, low, high : floats in the units of ``values``. A single value, or ``n`` equal
+        values, give ``(v, v, v)``.
+
+    Raises
+    ------
+    ValueError
+        On empty or non-finite ``values``, ``n_boot < 1`` or ``level`` outside ``(0, 1)``.
+    """
+    x = np.asarray(list(values), dtype=float)
+    if x.ndim != 1 or x.size == 0:
+        raise ValueError(
+            f"bootstrap_ci needs a non-empty 1-D sequence of values, got shape {x.shape}"
+        )
+    if not np.isfinite(x).all():
+        raise ValueError(f"bootstrap_ci needs finite values, got {x.tolist()}")
+    if n_boot < 1 or not 0.0 < level < 1.0:
+        raise ValueError(f"need n_boot >= 1 and 0 < level < 1, got {n_boot}, {level}")
+    if np.ptp(x) == 0.0:
+        v = float(x[0])
+        return v, v, v
+    rng = np.random.default_rng(seed)
+    rows = max(1, 2_000_000 // x.size)  # bounds the (rows, n) index block's memory
+    means = np.concatenate(
+        [
+            x[rng.integers(0, x.size, size=(min(rows, n_boot - start), x.size))].mean(axis=1)
+            for start in range(0, n_boot, rows)
+        ]
+    )
+    alpha = (1.0 - level) / 2.0
+    low, high = np.quantile(means, [alpha, 1.0 - alpha])
+    return float(x.mean()), float(low), float(high)
+
+
+@dataclass(frozen=True)
+class PairedTest:
+    """Paired comparison of two policies over the seeds both ran (``a - b``).
+
+    Attributes
+    ----------
+    n : number of paired seeds (0 when the two share none).
+    mean_diff : mean of the per-seed differences ``a[s] - b[s]`` (units of the inputs).
+    ci_low, ci_high : 95 % percentile bootstrap interval of ``mean_diff``.
+    p_value : two-sided sign-flip permutation p of ``mean_diff`` (NaN when ``n == 0``).
+    method : how ``p_value`` was obtained: ``"exact"`` (all ``2**n`` sign patterns),
+        ``"monte-carlo"`` (random sign patterns, ``(hits + 1) / (draws + 1)``) or
+        ``"none"`` (no common seeds).
+    """
+
+    n: int
+    mean_diff: float
+    ci_low: float
+    ci_high: float
+    p_value: float
+    method: str
+
+
+def _sign_flip_p(diffs: np.ndarray, n_flips: int, seed: int) -> tuple[float, str]:
+    """Two-sided p of ``|sum(diffs)|`` under random signs, and the method used."""
+    n = diffs.size
+    observed = abs(float(diffs.sum()))
+    tol = 1e-9 * max(float(np.abs(diffs).sum()), 1e-300)  # summation-order rounding
+    if n <= _EXACT_MAX_N:
+        patterns = np.arange(2**n)[:, None] >> np.arange(n) & 1
+        stats = np.abs((2.0 * patterns - 1.0) @ diffs)
+        return float(np.mean(stats >= observed - tol)), "exact"
+    rng = np.random.default_rng(seed)
+    hits, chunk = 0, max(1, 1_000_000 // n)
+    for start in range(0, n_flips, chunk):
+        signs = 2.0 * rng.integers(0, 2, size=(min(chunk, n_flips - start), n)) - 1.0
+        hits += int(np.count_nonzero(np.abs(signs @ diffs) >= observed - tol))
+    return (hits + 1) / (n_flips + 1), "monte-carlo"
+
+
+def paired_test(
+    a: Mapping[int, float],
+    b: Mapping[int, float],
+    n_flips: int = 100_000,
+    n_boot: int = 10_000,
+    seed: int = 0,
+) -> PairedTest:
+    """Paired sign-flip permutation test of ``mean(a[s] - b[s])`` over common seeds ``s``.
+
+    Parameters
+    ----------
+    a, b : per-seed values (e.g. accuracy in ``[0, 1]``) of two policies, keyed by seed;
+        seeds present in only one of them are ignored.
+    n_flips : random sign patterns when there are more than 16 pairs (up to 16 pairs the
+        test is exact).
+    n_boot : bootstrap resamples for the interval of the mean difference.
+    seed : seeds the random sign patterns and the bootstrap.
+
+    Returns
+    -------
+    PairedTest
+        With ``n == 0`` (no common seed): NaN difference, interval and p, method ``"none"``.
+    """
+    seeds = sorted(set(a) & set(b))
+    if not seeds:
+        nan = float("nan")
+        return PairedTest(0, nan, nan, nan, nan, "none")
+    diffs = np.array([float(a[s]) - float(b[s]) for s in seeds])
+    mean, low, high = bootstrap_ci(diffs, n_boot=n_boot, seed=seed)
+    p, method = _sign_flip_p(diffs, n_flips, seed)
+    return PairedTest(len(seeds), mean, low, high, p, method)
+
+
+# --------------------------------------------------------------------------- summary
+
+
+def _ordered(names: Iterable[str], preferred: Sequence[str]) -> list[str]:
+    """``names`` in ``preferred`` order, the others after in alphabetical order."""
+    names = set(names)
+    return [n for n in preferred if n in names] + sorted(names - set(preferred))
+
+
+def _check_episode(record: object, index: int) -> None:
+    if not isinstance(record, Mapping):
+        raise ValueError(f"episode {index} is a {type(record).__name__}, expected a dict")
+    missing = [k for k in _REQUIRED if k not in record]
+    if missing:
+        raise ValueError(
+            f"episode {index} (scene={record.get('scene')!r}, policy={record.get('policy')!r}, "
+            f"seed={record.get('seed')!r}) lacks {', '.join(missing)}"
+        )
+
+
+def _group(episodes: Sequence[Mapping]) -> dict[str, dict[str, list[Mapping]]]:
+    """``{scene: {policy: [episode, ...]}}`` in display order, episodes sorted by seed.
+
+    Raises ``ValueError`` on a missing required key or on two episodes with the same
+    (scene, policy, seed): a seed is counted once.
+    """
+    groups: dict[tuple[str, str], dict[int, Mapping]] = {}
+    for i, ep in enumerate(episodes):
+        _check_episode(ep, i)
+        runs = groups.setdefault((str(ep["scene"]), str(ep["policy"])), {})
+        seed = int(ep["seed"])
+        if seed in runs:
+            raise ValueError(
+                f"two episodes for scene={ep['scene']!r}, policy={ep['policy']!r}, seed={seed} "
+                f"(the second is episode {i}); remove the duplicate record"
+            )
+        runs[seed] = ep
+    out: dict[str, dict[str, list[Mapping]]] = {}
+    for scene in _ordered({s for s, _ in groups}, _SCENE_ORDER):
+        policies = _ordered({p for s, p in groups if s == scene}, _POLICY_ORDER)
+        out[scene] = {p: [groups[scene, p][s] for s in sorted(groups[scene, p])] for p in policies}
+    return out
+
+
+def _per_category(runs: Sequence[Mapping]) -> dict[str, dict[str, int]]:
+    counts: dict[str, dict[str, int]] = {}
+    for ep in runs:
+        for cat, c in ep["per_category"].items():
+            acc = counts.setdefault(cat, {"correct": 0, "total": 0})
+            acc["correct"] += int(c.get("correct", 0))
+            acc["total"] += int(c.get("total", 0))
+    return {cat: counts[cat] for cat in _ordered(counts, CATEGORIES)}
+
+
+def _policy_summary(runs: Sequence[Mapping]) -> dict:
+    mean, low, high = bootstrap_ci([float(ep["accuracy"]) for ep in runs])
+    return {
+        "accuracy_mean": mean,
+        "ci_low": low,
+        "ci_high": high,
+        "n": len(runs),
+        "seeds": [int(ep["seed"]) for ep in runs],
+        "objects": sum(int(ep["objects"]) for ep in runs),
+        "correct": sum(int(ep["correct"]) for ep in runs),
+        "inspections_mean": float(np.mean([ep["inspections"] for ep in runs])),
+        "grasp_failures_mean": float(np.mean([ep["grasp_failures"] for ep in runs])),
+        "wall_time_s_mean": float(np.mean([ep["wall_time_s"] for ep in runs])),
+        "sim_time_s_mean": float(np.mean([ep["sim_time_s"] for ep in runs])),
+        "truncated": sum(bool(ep.get("truncated", False)) for ep in runs),
+        "per_category": _per_category(runs),
+    }
+
+
+def summarize(episodes: Sequence[Mapping]) -> dict[str, dict[str, dict]]:
+    """Per scene and policy: accuracy over seeds, counts and means per episode.
+
+    Parameters
+    ----------
+    episodes : episode records in any order (one per scene, policy and seed).
+
+    Returns
+    -------
+    dict
+        ``{scene: {policy: {...}}}`` in display order (scenes ``uncluttered, cluttered``,
+        policies ``oracle, gp-ipm, gp-ipm-area, svm-ipm, random``, others after in
+        alphabetical order) with keys ``accuracy_mean, ci_low, ci_high`` (per-seed accuracy,
+        fraction in ``[0, 1]``: mean and 95 % bootstrap interval), ``n`` (seeds), ``seeds``,
+        ``objects`` and ``correct`` (summed over seeds), ``inspections_mean``,
+        ``grasp_failures_mean`` (per episode), ``wall_time_s_mean``, ``sim_time_s_mean``
+        (s per episode), ``truncated`` (episodes cut by the step limit) and
+        ``per_category`` (``{category: {"correct", "total"}}`` summed over seeds, in bin order).
+
+    Raises
+    ------
+    ValueError
+        On a record without a required key or two records of one (scene, policy, seed).
+    """
+    return _summarize_groups(_group(episodes))
+
+
+def _summarize_groups(groups: Mapping[str, Mapping[str, Sequence[Mapping]]]) -> dict:
+    return {
+        scene: {policy: _policy_summary(runs) for policy, runs in by_policy.items()}
+        for scene, by_policy in groups.items()
+    }
+
+
+# --------------------------------------------------------------------------- figures
+
+
+@dataclass(frozen=True, eq=False)
+class ThresholdSweep:
+    """Sorting accuracy and inspection rate as the inspection threshold varies.
+
+    Attributes
+    ----------
+    thresholds : (k,) confidence thresholds below which the policy inspects.
+    accuracy : (k,) accuracy at each threshold, fraction in ``[0, 1]``.
+    inspected_fraction : (k,) fraction of decisions that inspected, in ``[0, 1]``.
+    chosen : the threshold the policy uses.
+    source : a sentence saying what data the sweep comes from.
+    """
+
+    thresholds: np.ndarray
+    accuracy: np.ndarray
+    inspected_fraction: np.ndarray
+    chosen: float
+    source: str
+
+    def __post_init__(self) -> None:
+        arrays = {
+            name: np.asarray(getattr(self, name), float)
+            for name in ("thresholds", "accuracy", "inspected_fraction")
+        }
+        shapes = {a.shape for a in arrays.values()}
+        k = arrays["thresholds"].shape
+        if len(shapes) != 1 or len(k) != 1 or k[0] == 0:
+            raise ValueError(
+                "ThresholdSweep needs thresholds, accuracy and inspected_fraction of one "
+                f"shape (k,) with k >= 1, got {[a.shape for a in arrays.values()]}"
+            )
+        if not all(np.isfinite(a).all() for a in arrays.values()) or not math.isfinite(self.chosen):
+            raise ValueError("ThresholdSweep values must be finite")
+        for name, a in arrays.items():
+            object.__setattr__(self, name, a)
+        object.__setattr__(self, "chosen", float(self.chosen))
+
+
+@dataclass(frozen=True)
+class ReportPaths:
+    """The files :func:`write_report` wrote: ``markdown``, ``summary`` and the PNGs."""
+
+    markdown: Path
+    summary: Path
+    plots: tuple[Path, ...]
+
+
+def _label(name: str) -> str:
+    return name.replace("_", " ")
+
+
+def _accuracy_png(path: Path, summary: Mapping[str, Mapping[str, Mapping]]) -> None:
+    """Grouped bars: per scene, each policy's mean accuracy (%) with its 95 % interval."""
+    scenes = list(summary)
+    policies = _ordered({p for s in scenes for p in summary[s]}, _POLICY_ORDER)
+    width = 0.8 / len(policies)
+    fig = Figure(figsize=(3.4 + 0.45 * len(scenes) * len(policies), 3.6), dpi=_DPI)
+    ax = fig.subplots()
+    thesis_style = {"marker": "D", "ms": 5, "ls": "none", "mfc": "white", "mec": "black"}
+    for j, policy in enumerate(policies):
+        xs, means, errs = [], [], [[], []]
+        for i, scene in enumerate(scenes):
+            s = summary[scene].get(policy)
+            if s is None:
+                continue
+            xs.append(i - 0.4 + (j + 0.5) * width)
+            means.append(100 * s["accuracy_mean"])
+            errs[0].append(100 * (s["accuracy_mean"] - s["ci_low"]))
+            errs[1].append(100 * (s["ci_high"] - s["accuracy_mean"]))
+        ax.bar(xs, means, width, yerr=errs, capsize=3, label=policy, color=f"C{j}")
+        for i, scene in enumerate(scenes):
+            ref = THESIS_TABLE_5_1.get(scene, {}).get(policy)
+            if ref is not None:
+                x = i - 0.4 + (j + 0.5) * width
+                ax.plot([x], [ref.percent], **thesis_style)
+    if any(p in THESIS_TABLE_5_1.get(s, {}) for s in scenes for p in policies):
+        ax.plot([], [], label="thesis (Table 5.1)", **thesis_style)
+    ax.set_xticks(range(len(scenes)), scenes)
+    ax.set_ylabel("objects in the right bin (%)\nmean over seeds, 95 % CI")
+    ax.set_ylim(0, 105)
+    ax.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0))
+    ax.set_title("Sorting accuracy by policy", fontsize=9)
+    fig.tight_layout()
+    fig.savefig(path)
+
+
+def _inspect_decisions(episodes: Sequence[Mapping]) -> list[tuple[str, float, float, bool | None]]:
+    """``(scene, first_confidence, confidence, right)`` of every inspection decision.
+
+    ``right`` is whether the fused label equals the true category, ``None`` when unknown.
+    Decisions without both confidences finite are skipped.
+    """
+    out = []
+    for ep in episodes:
+        for d in ep.get("decisions") or []:
+            if d.get("kind") != "inspect":
+                continue
+            before, after = d.get("first_confidence"), d.get("confidence")
+            if before is None or after is None or not math.isfinite(before + after):
+                continue  # e.g. an inspection cut short before the fused label
+            truth = d.get("true_category")
+            right = None if truth is None else d.get("label") == truth
+            out.append((str(ep["scene"]), float(before), float(after), right))
+    return out
+
+
+def _confidence_png(path: Path, points: Sequence[tuple[str, float, float, bool | None]]) -> None:
+    """Per scene: confidence before (scene view) vs after inspection, coloured by outcome."""
+    scenes = _ordered({p[0] for p in points}, _SCENE_ORDER)
+    fig = Figure(figsize=(3.6 * len(scenes), 3.6), dpi=_DPI)
+    axes = np.atleast_1d(fig.subplots(1, len(scenes), sharey=True))
+    styles = (
+        (True, "tab:green", "o", "label right"),
+        (False, "tab:red", "x", "label wrong"),
+        (None, "0.5", ".", "truth unknown"),
+    )
+    for ax, scene in zip(axes, scenes, strict=True):
+        ax.plot([0, 1], [0, 1], "k:", lw=1, label="no change")
+        for outcome, colour, marker, name in styles:
+            sel = [(b, a) for s, b, a, r in points if s == scene and r is outcome]
+            if sel:
+                b, a = np.array(sel).T
+                ax.scatter(b, a, s=12, c=colour, marker=marker, label=f"{name} ({len(sel)})")
+        ax.set_xlim(0, 1.02)
+        ax.set_ylim(0, 1.02)
+        ax.set_xlabel("confidence in the scene view")
+        ax.set_title(f"{scene}: inspected objects", fontsize=9)
+        ax.legend(fontsize=7, loc="lower right")
+    axes[0].set_ylabel("confidence after inspection")
+    fig.tight_layout()
+    fig.savefig(path)
+
+
+def _sweep_png(path: Path, sweep: ThresholdSweep) -> None:
+    """Accuracy and inspected fraction (%) against the threshold, the chosen one marked."""
+    order = np.argsort(sweep.thresholds)
+    t = sweep.thresholds[order]
+    fig = Figure(figsize=(4.6, 3.4), dpi=_DPI)
+    ax = fig.subplots()
+    ax.plot(t, 100 * sweep.accuracy[order], "o-", ms=3, label="accuracy")
+    ax.plot(t, 100 * sweep.inspected_fraction[order], "s--", ms=3, label="inspected")
+    ax.axvline(sweep.chosen, color="k", lw=1, ls=":", label=f"chosen {sweep.chosen:.2f}")
+    ax.set_xlabel("inspection threshold (confidence)")
+    ax.set_ylabel("%")
+    ax.set_ylim(0, 105)
+    ax.legend(fontsize=8)
+    ax.set_title("Inspection threshold sweep", fontsize=9)
+    fig.tight_layout()
+    fig.savefig(path)
+
+
+# --------------------------------------------------------------------------- markdown
+
+
+def _pct(fraction: float, digits: int = 1) -> str:
+    return f"{100 * fraction:.{digits}f}"
+
+
+def _p(p: float) -> str:
+    if math.isnan(p):
+        return "n/a"
+    return "< 0.0001" if p < 1e-4 else f"= {p:.4f}"
+
+
+def _scene_table(summary: Mapping[str, Mapping]) -> list[str]:
+    cats = _ordered({c for s in summary.values() for c in s["per_category"]}, CATEGORIES)
+    head = ["policy", *map(_label, cats), "Total", "mean", "95 % CI", "seeds"]
+    head += ["inspections", "grasp failures", "wall time"]
+    lines = ["| " + " | ".join(head) + " |", "|---" * len(head) + "|"]
+    for policy, s in summary.items():
+        cells = [policy]
+        for cat in cats:
+            c = s["per_category"].get(cat)
+            cells.append(f"{c['correct']}/{c['total']}" if c and c["total"] else "–")
+        total = f"{s['correct']}/{s['objects']}"
+        if s["objects"]:
+            total += f" ({100 * s['correct'] / s['objects']:.0f} %)"
+        cells += [
+            total,
+            f"{_pct(s['accuracy_mean'])} %",
+            f"[{_pct(s['ci_low'])}, {_pct(s['ci_high'])}] %",
+            str(s["n"]),
+            f"{s['inspections_mean']:.1f}",
+            f"{s['grasp_failures_mean']:.1f}",
+            f"{s['wall_time_s_mean']:.1f} s",
+        ]
+        lines.append("| " + " | ".join(cells) + " |")
+    return lines
+
+
+def _thesis_line(scene: str) -> str:
+    refs = THESIS_TABLE_5_1.get(scene)
+    if not refs:
+        return f"*Thesis:* no Table 5.1 figure for the {scene} scene."
+    parts = [
+        f"{r.label} (`{p}`) {r.correct}/{r.total} ({r.percent:.0f} %)" for p, r in refs.items()
+    ]
+    return f"*Thesis, Table 5.1, {scene} (totals only):* " + "; ".join(parts) + "."
+
+
+def _overlap(a: Mapping, b: Mapping) -> bool:
+    return max(a["ci_low"], b["ci_low"]) <= min(a["ci_high"], b["ci_high"])
+
+
+def _paired_line(scene: str, runs: Mapping[str, Sequence[Mapping]], summary: Mapping) -> str:
+    per_seed = {
+        p: {int(ep["seed"]): float(ep["accuracy"]) for ep in runs[p]} for p in ("gp-ipm", "random")
+    }
+    t = paired_test(per_seed["gp-ipm"], per_seed["random"])
+    head = f"**Paired test, {scene}, `gp-ipm` − `random`:** "
+    if t.n == 0:
+        return head + "no seed in common, no test."
+    method = "exact" if t.method == "exact" else "100,000 random sign flips"
+    overlap = "overlap" if _overlap(summary["gp-ipm"], summary["random"]) else "do not overlap"
+    return (
+        head + f"mean difference {100 * t.mean_diff:+.1f} points "
+        f"(95 % CI [{100 * t.ci_low:+.1f}, {100 * t.ci_high:+.1f}]), "
+        f"p {_p(t.p_value)} (two-sided sign-flip permutation test, {method}; "
+        f"n = {t.n} paired seeds); the two policies' 95 % intervals {overlap}."
+    )
+
+
+def _confidence_lines(points: Sequence[tuple[str, float, float, bool | None]]) -> list[str]:
+    known = [p for p in points if p[3] is not None]
+    raised = sum(after > before for _, before, after, _ in points)
+    text = f"{len(points)} inspections (all policies); the confidence rose in {raised} of them" + (
+        f"; the fused label was right in {sum(p[3] for p in known)} of the {len(known)} "
+        "with known ground truth."
+        if known
+        else "."
+    )
+    return [text, "", "![confidence before and after inspection](confidence_inspection.png)"]
+
+
+def _sweep_lines(sweep: ThresholdSweep) -> list[str]:
+    i = int(np.argmin(np.abs(sweep.thresholds - sweep.chosen)))
+    return [
+        f"{sweep.source} Chosen threshold: {sweep.chosen:.2f}; at the nearest sweep point "
+        f"({sweep.thresholds[i]:.2f}) accuracy {_pct(sweep.accuracy[i])} % with "
+        f"{_pct(sweep.inspected_fraction[i])} % of the decisions inspected.",
+        "",
+        "![threshold sweep](threshold_sweep.png)",
+    ]
+
+
+_HOW_TO_READ = (
+    "How to read: one table per scene, laid out like the thesis' Table 5.1. Each category "
+    "column counts objects sorted into their own bin as `correct/total`, summed over all "
+    "seeds; `Total` pools every object of every seed. `mean` is the mean over seeds of the "
+    "per-episode accuracy and `95 % CI` its percentile bootstrap interval (10,000 resamples "
+    "of the seeds), so `mean` can differ from the pooled `Total` when scenes hold different "
+    "numbers of objects. `inspections` and `grasp failures` are means per episode, `wall "
+    "time` the mean wall-clock seconds per episode. The paired test compares `gp-ipm` with "
+    "`random` on the seeds both ran (the same scenes): the difference is in percentage "
+    "points, its interval is a bootstrap of the per-seed differences."
+)
+
+
+def write_report(
+    episodes: Sequence[Mapping],
+    out: Path,
+    threshold_sweep: ThresholdSweep | None = None,
+    title: str = "Interactive sorting: objects in the right bin",
+) -> ReportPaths:
+    """Write ``summary.json``, ``sorting.md`` and the PNGs into ``out`` (created if needed).
+
+    Parameters
+    ----------
+    episodes : episode records in any order (see :func:`summarize`).
+    out : report folder.
+    threshold_sweep : if given, ``threshold_sweep.png`` and its paragraph are added.
+    title : the markdown's first heading.
+
+    Returns
+    -------
+    ReportPaths
+        ``plots`` holds ``accuracy_by_policy.png``, ``confidence_inspection.png`` (only when
+        some decision inspected) and ``threshold_sweep.png`` (only with a sweep).
+
+    Raises
+    ------
+    ValueError
+        On no episodes, or on records :func:`summarize` rejects.
+    """
+    if not episodes:
+        raise ValueError("write_report needs at least one episode record, got none")
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    runs = _group(episodes)
+    summary = _summarize_groups(runs)
+    summary_path = out / "summary.json"
+    summary_path.write_text(json.dumps(summary, indent=2, allow_nan=False) + "\n")
+
+    plots = [out / "accuracy_by_policy.png"]
+    _accuracy_png(plots[0], summary)
+    lines = [f"# {title}", "", _HOW_TO_READ, ""]
+    for scene, by_policy in summary.items():
+        lines += [f"## {scene}", "", *_scene_table(by_policy), "", _thesis_line(scene), ""]
+        truncated = sum(s["truncated"] for s in by_policy.values())
+        if truncated:
+            lines += [f"{truncated} episode(s) stopped at the step limit (truncated).", ""]
+        if "gp-ipm" in by_policy and "random" in by_policy:
+            lines += [_paired_line(scene, runs[scene], by_policy), ""]
+    lines += ["## Plots", "", "![accuracy by policy](accuracy_by_policy.png)", ""]
+    points = _inspect_decisions(episodes)
+    if points:
+        plots.append(out / "confidence_inspection.png")
+        _confidence_png(plots[-1], points)
+        lines += ["### Confidence before and after inspection", "", *_confidence_lines(points)]
+        lines.append("")
+    if threshold_sweep is not None:
+        plots.append(out / "threshold_sweep.png")
+        _sweep_png(plots[-1], threshold_sweep)
+        lines += ["### Inspection threshold", "", *_sweep_lines(threshold_sweep), ""]
+    markdown = out / "sorting.md"
+    markdown.write_text("\n".join(lines).rstrip("\n") + "\n")
+    return ReportPaths(markdown, summary_path, tuple(plots))
+
+
+# --------------------------------------------------------------------------- loading
+
+
+def load_episodes(path: Path) -> list[dict]:
+    """Episode records of a JSONL file (one JSON object per line, blank lines ignored).
+
+    A last line that does not parse is taken for a record cut short by an interrupted
+    writer: it is skipped with a warning.
+
+    Raises
+    ------
+    ValueError
+        On a line before the last that is not a JSON object, naming the file and line.
+    """
+    path = Path(path)
+    numbered = [
+        (i, line) for i, line in enumerate(path.read_text("utf-8").splitlines(), 1) if line.strip()
+    ]
+    records = []
+    for k, (lineno, line) in enumerate(numbered):
+        try:
+            record = json.loads(line)
+        except json.JSONDecodeError as err:
+            if k == len(numbered) - 1:
+                warnings.warn(
+                    f"{path}:{lineno}: skipping a truncated last line (interrupted writer?): "
+                    f"{err.msg}",
+                    stacklevel=2,
+                )
+                break
+            raise ValueError(f"{path}:{lineno}: not valid JSON ({err.msg})") from err
+        if not isinstance(record, dict):
+            raise ValueError(
+                f"{path}:{lineno}: expected a JSON object, got {type(record).__name__}"
+            )
+        records.append(record)
+    return records

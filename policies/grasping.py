@@ -1,0 +1,118 @@
+"""Where and how to grasp a perceived segment, and remembering grasps that failed.
+
+The camera sees only an object's front, so the box of its points is short along the line of
+sight; the footprint is completed by assuming the unseen back is as deep as the object is wide
+(:func:`completed_footprint`: a cylinder's or a box's centre moves back by half the missing
+depth). The grasp point is that footprint's centre, lowered for short objects to just under the top
+(a bowl is held by its rim, as in :func:`ipbench.policies.scripted.grasp_point`); the jaws
+close across the box's narrower horizontal side, or — for a near-square footprint — along
+whichever of the two sides keeps the fingers farthest from the neighbouring segments. After a
+failed grasp the next attempt at the same place turns the jaws by 90°.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ipbench.perception.segmentation import Segment, grasp_yaw
+from ipbench.policies.scripted import SHORT, TOP_MARGIN, clearest_yaw
+
+__all__ = ["FailureMemory", "GraspTarget", "completed_footprint", "grasp_target"]
+
+SQUARE = 1.2
+"""Footprints whose sides differ by less than this ratio are near-square."""
+MAX_COMPLETION = 0.05
+"""Most the footprint is deepened along the line of sight (m)."""
+
+
+@dataclass(frozen=True)
+class GraspTarget:
+    """``position`` (3,) world m and jaw ``yaw`` (rad, in [-pi, pi)) for the env's action."""
+
+    position: np.ndarray
+    yaw: float
+
+
+def _wrap(a: float) -> float:
+    return float((a + np.pi) % (2 * np.pi) - np.pi)
+
+
+def completed_footprint(segment: Segment, viewpoint: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Centre (2,) and side lengths (2,) along the box's x and y axes of the object's
+    footprint on the table, its unseen back completed (see the module docstring)."""
+    axes = np.asarray(segment.box_rotation, dtype=float)[:2, :2]  # columns: box x, y (xy part)
+    ext = np.asarray(segment.box_extent[:2], dtype=float).copy()
+    centre = np.asarray(segment.box_center[:2], dtype=float).copy()
+    sight = centre - np.asarray(viewpoint, dtype=float)[:2]
+    if np.linalg.norm(sight) < 1e-6:
+        return centre, ext
+    sight /= np.linalg.norm(sight)
+    along = int(np.argmax(np.abs(axes.T @ sight)))  # the box side closest to the sight line
+    missing = min(max(ext[1 - along] - ext[along], 0.0), MAX_COMPLETION)
+    if missing > 0:
+        direction = axes[:, along] * np.sign(axes[:, along] @ sight)
+        centre += 0.5 * missing * direction
+        ext[along] += missing
+    return centre, ext
+
+
+def grasp_target(
+    segment: Segment,
+    neighbours: list[np.ndarray],
+    turn: int = 0,
+    viewpoint: np.ndarray | None = None,
+) -> GraspTarget:
+    """The grasp of ``segment`` seen from ``viewpoint`` (3,) (None: no completion);
+    ``neighbours`` are other segments' centres (3,), ``turn`` the number of failed attempts
+    here (each turns the jaws by a further 90°)."""
+    top = float(segment.top)
+    height = float(segment.height)
+    z = top - TOP_MARGIN if height < SHORT else top - 0.5 * height
+    if viewpoint is None:
+        centre, ext = np.asarray(segment.box_center[:2]), np.asarray(segment.box_extent[:2])
+    else:
+        centre, ext = completed_footprint(segment, viewpoint)
+    position = np.array([centre[0], centre[1], z])
+    yaw = grasp_yaw(segment)  # across the box's y side
+    if ext[0] < ext[1]:
+        yaw += np.pi / 2
+    ext = np.sort(ext)
+    if ext[1] < SQUARE * max(ext[0], 1e-6):
+        yaw = clearest_yaw(position, [yaw, yaw + np.pi / 2], neighbours)
+    return GraspTarget(position, _wrap(yaw + turn * np.pi / 2))
+
+
+@dataclass
+class FailureMemory:
+    """Failed grasp attempts by table position (xy within ``radius`` m is the same place)."""
+
+    radius: float = 0.05
+    places: list[np.ndarray] = field(default_factory=list)
+    counts: list[int] = field(default_factory=list)
+
+    def _index(self, xy: np.ndarray) -> int | None:
+        for i, p in enumerate(self.places):
+            if np.linalg.norm(p - xy) <= self.radius:
+                return i
+        return None
+
+    def count(self, position: np.ndarray) -> int:
+        """Failed attempts recorded at ``position``'s place."""
+        i = self._index(np.asarray(position, dtype=float)[:2])
+        return 0 if i is None else self.counts[i]
+
+    def record(self, position: np.ndarray) -> None:
+        """One more failed attempt at ``position``'s place."""
+        xy = np.asarray(position, dtype=float)[:2]
+        i = self._index(xy)
+        if i is None:
+            self.places.append(xy)
+            self.counts.append(1)
+        else:
+            self.counts[i] += 1
+
+    def clear(self) -> None:
+        self.places.clear()
+        self.counts.clear()

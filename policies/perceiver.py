@@ -1,0 +1,138 @@
+"""The perception stage inside the policies: observation -> classified object hypotheses.
+
+One RGB-D observation of the wrist camera becomes a world-frame cloud
+(:func:`~ipbench.perception.cloud.depth_to_points`), then segments (the whole table, the
+inspection area, or the object in the gripper), each described by FPFH bag-of-words and
+classified by the trained model. Only the observation and static knowledge of the work cell
+(where the inspection area is, the gripper's geometry and kinematics) are used — never the
+simulator's state.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ipbench.perception.cloud import PerceptionError, depth_to_points
+from ipbench.perception.features import DEFAULT_FEATURES, FeatureConfig, fpfh
+from ipbench.perception.model import PerceptionModel
+from ipbench.perception.segmentation import (
+    DEFAULT_SEGMENTATION,
+    Segment,
+    SegmentationConfig,
+    segment_in_hand,
+    segment_region,
+    segment_scene,
+)
+from ipbench.policies.kinematics import HandKinematics
+
+__all__ = ["AREA_HALF", "Detection", "Perceiver"]
+
+AREA_HALF = (0.17, 0.17, 0.35)
+"""Half size of the box searched around the inspection area's centre (m): the area plus some
+table around it, which the plane fit needs."""
+
+
+@dataclass(frozen=True, eq=False)
+class Detection:
+    """A segment and its class probabilities ``probs`` (C,) over ``classes``.
+
+    ``viewpoint``: (3,) camera centre of the view (world, m); ``inspected``: the detection
+    comes from an inspection view (in hand or in the area).
+    """
+
+    segment: Segment
+    probs: np.ndarray
+    classes: tuple[str, ...]
+    viewpoint: np.ndarray
+    inspected: bool = False
+
+    @property
+    def label(self) -> str:
+        """The most probable class."""
+        return self.classes[int(np.argmax(self.probs))]
+
+    @property
+    def confidence(self) -> float:
+        """Probability of :attr:`label`."""
+        return float(np.max(self.probs))
+
+    @property
+    def points(self) -> np.ndarray:
+        """(N, 3) world points of the segment, m."""
+        return self.segment.points
+
+
+class Perceiver:
+    """Segments and classifies what the wrist camera sees.
+
+    Parameters
+    ----------
+    model : the trained codebook + classifier.
+    segmentation, features : the settings the model's training views were made with.
+    inspection_area : (3,) centre of the inspection area (world, m).
+    """
+
+    def __init__(
+        self,
+        model: PerceptionModel,
+        inspection_area: np.ndarray,
+        segmentation: SegmentationConfig = DEFAULT_SEGMENTATION,
+        features: FeatureConfig = DEFAULT_FEATURES,
+    ) -> None:
+        self.model = model
+        self.segmentation = segmentation
+        self.features = features
+        self.inspection_area = np.asarray(inspection_area, dtype=float)
+        self.kinematics = HandKinematics()
+
+    @property
+    def classes(self) -> tuple[str, ...]:
+        return self.model.classes
+
+    def _cloud(self, observation: dict):
+        return depth_to_points(
+            observation["wrist_depth"], observation["wrist_K"], observation["wrist_pose"]
+        )
+
+    def _classify(self, segments: list[Segment], eye: np.ndarray, inspected: bool):
+        views = [fpfh(s.points, self.features, viewpoint=eye) for s in segments]
+        probs = self.model.probabilities(views)
+        return [
+            Detection(s, p, self.classes, eye, inspected)
+            for s, p in zip(segments, probs, strict=True)
+        ]
+
+    def scene(self, observation: dict) -> list[Detection]:
+        """Every object hypothesis on the table (empty when no table plane is found)."""
+        try:
+            segments = list(segment_scene(self._cloud(observation), self.segmentation).segments)
+        except PerceptionError:
+            return []
+        return self._classify(segments, observation["wrist_pose"][:3, 3], inspected=False)
+
+    def in_area(self, observation: dict) -> Detection | None:
+        """The object in the inspection area (None when nothing is there)."""
+        try:
+            segment = segment_region(
+                self._cloud(observation), self.inspection_area, AREA_HALF, self.segmentation
+            )
+        except PerceptionError:
+            return None
+        if segment is None:
+            return None
+        return self._classify([segment], observation["wrist_pose"][:3, 3], inspected=True)[0]
+
+    def in_hand(self, observation: dict) -> Detection | None:
+        """The object held by the gripper (None when the hand is empty or out of view)."""
+        q = observation["qpos"]
+        segment = segment_in_hand(
+            self._cloud(observation),
+            self.kinematics.tcp_pose(q),
+            self.kinematics.jaw_opening(q),
+            config=self.segmentation,
+        )
+        if segment is None:
+            return None
+        return self._classify([segment], observation["wrist_pose"][:3, 3], inspected=True)[0]

@@ -1,0 +1,178 @@
+"""Policies: view fusion, the threshold rule, grasp aiming, and the GP-IPM decision loop."""
+
+from __future__ import annotations
+
+import importlib
+
+import numpy as np
+import pytest
+
+from ipbench.perception.segmentation import Segment
+from ipbench.policies import POLICIES, PolicyError, make_policy
+from ipbench.policies.fusion import FusionError, bayes_fusion, fuse, majority_vote
+from ipbench.policies.grasping import FailureMemory, completed_footprint, grasp_target
+from ipbench.policies.interactive import InteractiveConfig, InteractiveSorter
+from ipbench.policies.perceiver import Detection
+from ipbench.policies.threshold import choose_threshold
+
+CLASSES = ("juice_bottle", "milk_carton", "bowl", "mug", "juice_box")
+
+
+@pytest.mark.parametrize(
+    "name",
+    [
+        "ipbench.policies",
+        "ipbench.policies.base",
+        "ipbench.policies.fusion",
+        "ipbench.policies.grasping",
+        "ipbench.policies.interactive",
+        "ipbench.policies.kinematics",
+        "ipbench.policies.oracle",
+        "ipbench.policies.perceiver",
+        "ipbench.policies.random_sorting",
+        "ipbench.policies.threshold",
+    ],
+)
+def test_export_lists_are_complete(name: str) -> None:
+    module = importlib.import_module(name)
+    for symbol in module.__all__:
+        assert hasattr(module, symbol), f"{name}.__all__ names missing {symbol}"
+
+
+def test_majority_vote_breaks_ties_by_the_highest_probability() -> None:
+    views = np.array(
+        [[0.6, 0.4, 0.0, 0.0, 0.0], [0.1, 0.9, 0.0, 0.0, 0.0], [0.5, 0.2, 0.3, 0.0, 0.0]]
+    )
+    assert majority_vote(views)[0] == 0  # two votes for class 0
+    label, conf = majority_vote(views[:2])  # one vote each: 0.9 beats 0.6
+    assert label == 1 and conf == pytest.approx(0.65)
+
+
+def test_bayes_fusion_is_the_normalised_product() -> None:
+    views = np.array([[0.6, 0.3, 0.1], [0.5, 0.4, 0.1]])
+    expected = views.prod(axis=0) / views.prod(axis=0).sum()
+    np.testing.assert_allclose(bayes_fusion(views), expected)
+    label, conf = fuse(views, "bayes")
+    assert label == 0 and conf == pytest.approx(expected[0])
+    with pytest.raises(FusionError, match="majority, bayes"):
+        fuse(views, "average")
+
+
+def test_threshold_is_the_lowest_reaching_the_target_precision() -> None:
+    conf = np.array([0.3, 0.4, 0.5, 0.6, 0.7, 0.8, 0.9, 0.95])
+    correct = np.array([False, False, True, False, True, True, True, True])
+    choice = choose_threshold(conf, correct, target_precision=1.0)
+    assert choice.threshold == pytest.approx(0.61)  # above 0.6: all right
+    assert choice.inspected[np.searchsorted(choice.thresholds, 0.61)] == pytest.approx(0.5)
+    assert choose_threshold(conf, np.zeros(8, bool), 0.9).threshold == 1.0  # inspect all
+    with pytest.raises(PolicyError):
+        choose_threshold(conf, correct[:3])
+
+
+def _segment(center, extent, yaw=0.0, top=0.95, height=0.2) -> Segment:
+    c, s = np.cos(yaw), np.sin(yaw)
+    rot = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+    pts = np.asarray(center, float) + np.random.default_rng(0).uniform(-0.01, 0.01, (50, 3))
+    return Segment(
+        pts, np.arange(50), pts.mean(0), np.asarray(center, float), rot, np.asarray(extent, float),
+        height, top,
+    )  # fmt: skip
+
+
+def test_footprint_is_completed_away_from_the_camera() -> None:
+    """A cylinder of 8 cm seen from -x shows only its front 4 cm: the centre moves back."""
+    seg = _segment([1.0, 0.0, 0.85], [0.08, 0.04, 0.2], yaw=np.pi / 2)  # x axis along world y
+    centre, ext = completed_footprint(seg, np.array([0.5, 0.0, 1.3]))
+    np.testing.assert_allclose(centre, [1.02, 0.0], atol=1e-9)  # 2 cm further from the camera
+    np.testing.assert_allclose(np.sort(ext), [0.08, 0.08])
+    target = grasp_target(seg, [], 0, np.array([0.5, 0.0, 1.3]))
+    assert target.position[2] == pytest.approx(0.95 - 0.1)  # tall: the middle of its height
+    turned = grasp_target(seg, [], 1, np.array([0.5, 0.0, 1.3]))
+    assert (
+        abs(abs(turned.yaw - target.yaw) - np.pi / 2) < 1e-6
+        or abs(abs(turned.yaw - target.yaw) - 3 * np.pi / 2) < 1e-6
+    )
+
+
+def test_failure_memory_groups_nearby_attempts() -> None:
+    memory = FailureMemory(radius=0.04)
+    memory.record(np.array([1.0, 0.0, 0.8]))
+    memory.record(np.array([1.02, 0.01, 0.8]))
+    assert memory.count(np.array([1.01, 0.0])) == 2
+    assert memory.count(np.array([1.2, 0.0])) == 0
+
+
+class _FakeKinematics:
+    def __init__(self) -> None:
+        self.opening = 0.07
+
+    def jaw_opening(self, qpos) -> float:
+        return self.opening
+
+
+class _FakePerceiver:
+    """Scene detections with given confidences; in-hand views from a queue."""
+
+    classes = CLASSES
+
+    def __init__(self, scene_probs, hand_probs) -> None:
+        self.scene_probs = [np.asarray(p, float) for p in scene_probs]
+        self.hand_probs = [np.asarray(p, float) for p in hand_probs]
+        self.kinematics = _FakeKinematics()
+        self.hand_calls = 0
+
+    def _det(self, probs, x, inspected=False) -> Detection:
+        seg = _segment([x, 0.0, 0.85], [0.08, 0.06, 0.2])
+        return Detection(seg, probs, CLASSES, np.array([0.5, 0.0, 1.3]), inspected)
+
+    def scene(self, observation):
+        return [self._det(p, 0.8 + 0.15 * i) for i, p in enumerate(self.scene_probs)]
+
+    def in_hand(self, observation):
+        self.hand_calls += 1
+        return self._det(self.hand_probs.pop(0), 0.6, inspected=True)
+
+
+def test_gp_ipm_sorts_a_confident_object_at_once() -> None:
+    perceiver = _FakePerceiver([[0.1, 0.1, 0.1, 0.6, 0.1], [0.9, 0.05, 0.05, 0, 0]], [])
+    policy = InteractiveSorter(perceiver, InteractiveConfig(threshold=0.8))
+    policy.reset(0)
+    action = policy.act({"qpos": None})
+    assert action["command"] == 0 and action["bin"] == 0  # the most confident, its bin
+    assert policy.decisions[0].kind == "place" and policy.decisions[0].views == 0
+    assert perceiver.hand_calls == 0
+
+
+def test_gp_ipm_inspects_an_unsure_object_then_sorts_the_fused_label() -> None:
+    unsure = [0.1, 0.1, 0.1, 0.6, 0.1]  # says mug, below the threshold
+    views = [[0, 0.1, 0.8, 0.1, 0], [0, 0.1, 0.7, 0.2, 0], [0, 0.1, 0.2, 0.7, 0]]
+    perceiver = _FakePerceiver([unsure], views)
+    policy = InteractiveSorter(perceiver, InteractiveConfig(threshold=0.8, n_views=3))
+    policy.reset(0)
+    commands = [policy.act({"qpos": None})["command"] for _ in range(3)]
+    assert commands == [2, 2, 2]  # pick into the hand, then two turns
+    final = policy.act({"qpos": None})
+    assert final["command"] == 0 and final["bin"] == CLASSES.index("bowl")  # 2 of 3 views
+    d = policy.decisions[0]
+    assert (d.kind, d.first_label, d.label, d.views) == ("inspect", "mug", "bowl", 3)
+    assert perceiver.hand_calls == 3
+
+
+def test_gp_ipm_gives_up_inspecting_when_the_hand_is_empty() -> None:
+    perceiver = _FakePerceiver([[0.1, 0.1, 0.1, 0.6, 0.1]], [])
+    policy = InteractiveSorter(perceiver, InteractiveConfig(threshold=0.8))
+    policy.reset(0)
+    assert policy.act({"qpos": None})["command"] == 2
+    perceiver.kinematics.opening = 0.0  # the grasp failed
+    action = policy.act({"qpos": None})  # looks at the table again, tries once more
+    assert action["command"] == 2 and perceiver.hand_calls == 0
+    assert policy.failures.count(np.array([0.8, 0.0])) == 1
+
+
+def test_unknown_policy_and_bad_settings_list_the_valid_options() -> None:
+    with pytest.raises(PolicyError, match=", ".join(POLICIES)):
+        make_policy("greedy", None)  # type: ignore[arg-type]
+    with pytest.raises(PolicyError, match="hand, area"):
+        InteractiveConfig(inspection="shelf")
+    with pytest.raises(PolicyError, match=r"\[0, 1\]"):
+        InteractiveConfig(threshold=1.5)
