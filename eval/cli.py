@@ -163,11 +163,10 @@ def _seeds(text: str) -> tuple[int, ...]:
 
 
 def _writable(path: Path) -> None:
+    from ipbench.eval.files import ensure_writable
+
     try:
-        path.mkdir(parents=True, exist_ok=True)
-        probe = path / ".write-test"
-        probe.write_text("")
-        probe.unlink()
+        ensure_writable(path)
     except OSError as err:
         raise SystemExit(f"ipbench: cannot write to {path}: {err}") from err
 

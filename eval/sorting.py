@@ -36,6 +36,7 @@ import ipbench.envs  # noqa: F401  (registers the environments)
 from ipbench.assets.objects import CATEGORIES
 from ipbench.envs.layout import SCENES
 from ipbench.envs.sorting import _static_places
+from ipbench.eval.files import ensure_writable
 from ipbench.eval.perception import PerceptionEvalConfig, model_key, trained_model
 from ipbench.eval.sorting_report import ThresholdSweep, load_episodes, write_report
 from ipbench.policies import FUSIONS, POLICIES, NothingToSort, PolicyModels, make_policy
@@ -377,10 +378,7 @@ def _executor(config: SortingEvalConfig) -> Callable:
 # -- the evaluation -------------------------------------------------------------------------------
 def _check_out(out: Path, fingerprint: str) -> None:
     try:
-        out.mkdir(parents=True, exist_ok=True)
-        probe = out / ".write-test"
-        probe.write_text("")
-        probe.unlink()
+        ensure_writable(out)
     except OSError as err:
         raise SortingEvalError(
             f"cannot write to the output folder {out} ({err.strerror}); pass a writable --out"

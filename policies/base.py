@@ -102,10 +102,12 @@ class SceneSorter:
 
     After an action that should have removed the object at ``position``, a segment still
     there in the next scene view counts as a failed grasp; the next attempt there turns the
-    jaws by 90°, and a place that failed twice waits until the others had as many tries.
+    jaws by 90°, and a place that failed twice waits until the others had as many tries. After
+    ``max_attempts`` failures at one place the object there is given up (left on the table).
     """
 
     name = "scene-sorter"
+    max_attempts = 6
 
     def __init__(self, perceiver: Perceiver) -> None:
         self.perceiver = perceiver
@@ -134,6 +136,20 @@ class SceneSorter:
                 self.failures.record(p)
             self._last_target = None
         return self.detections
+
+    def candidates(self, detections: list[Detection]) -> list[Detection]:
+        """``detections`` not yet given up; :class:`NothingToSort` when none is left."""
+        keep = [
+            d for d in detections if self.failures.count(d.segment.box_center) < self.max_attempts
+        ]
+        if not keep:
+            raise NothingToSort(
+                "no object segmented on the table"
+                if not detections
+                else f"{len(detections)} object(s) left, each after "
+                f"{self.max_attempts} failed grasps"
+            )
+        return keep
 
     def target(self, detection: Detection) -> GraspTarget:
         """Where to grasp ``detection`` (turned after failures there)."""

@@ -17,7 +17,6 @@ import numpy as np
 
 from ipbench.policies.base import (
     Decision,
-    NothingToSort,
     PolicyError,
     SceneSorter,
     place_action,
@@ -93,9 +92,7 @@ class InteractiveSorter(SceneSorter):
         self._steps += 1
         if self._inspection is not None:
             return self._continue_inspection(observation)
-        detections = self.perceive_scene(observation)
-        if not detections:
-            raise NothingToSort("no object segmented on the table")
+        detections = self.candidates(self.perceive_scene(observation))
         best = min(detections, key=lambda d: (self.patience(d), -d.confidence))
         decision = self.begin(best)
         target = self.target(best)

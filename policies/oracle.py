@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ipbench.policies.base import NothingToSort, PolicyError, SceneSorter, place_action
+from ipbench.policies.base import PolicyError, SceneSorter, place_action
 from ipbench.policies.perceiver import Detection, Perceiver
 
 __all__ = ["OracleSorter", "true_category"]
@@ -44,8 +44,7 @@ class OracleSorter(SceneSorter):
             if category is not None:
                 probs = np.array([float(c == category) for c in d.classes])
                 labelled.append(Detection(d.segment, probs, d.classes, d.viewpoint))
-        if not labelled:
-            raise NothingToSort("no object segmented on the table")
+        labelled = self.candidates(labelled)
         self.detections = labelled
         best = min(labelled, key=lambda d: (self.patience(d), -len(d.segment.points)))
         self.begin(best)

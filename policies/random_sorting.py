@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ipbench.policies.base import NothingToSort, SceneSorter, place_action
+from ipbench.policies.base import SceneSorter, place_action
 from ipbench.policies.perceiver import Detection, Perceiver
 
 __all__ = ["RandomSorter"]
@@ -33,9 +33,7 @@ class RandomSorter(SceneSorter):
     def act(self, observation: dict, info: dict | None = None) -> dict:
         self._steps += 1
         if not self._queue:
-            detections = self.perceive_scene(observation)
-            if not detections:
-                raise NothingToSort("no object segmented on the table")
+            detections = self.candidates(self.perceive_scene(observation))
             self._queue = [detections[i] for i in self._rng.permutation(len(detections))]
         else:
             self._last_target = None  # one-shot: no new view to check the last grasp with

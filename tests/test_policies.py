@@ -176,3 +176,17 @@ def test_unknown_policy_and_bad_settings_list_the_valid_options() -> None:
         InteractiveConfig(inspection="shelf")
     with pytest.raises(PolicyError, match=r"\[0, 1\]"):
         InteractiveConfig(threshold=1.5)
+
+
+def test_an_object_is_given_up_after_repeated_failed_grasps() -> None:
+    from ipbench.policies import NothingToSort
+
+    perceiver = _FakePerceiver([[0.9, 0.05, 0.05, 0, 0]], [])
+    policy = InteractiveSorter(perceiver, InteractiveConfig(threshold=0.5))
+    policy.reset(0)
+    yaws = []
+    for _ in range(policy.max_attempts):  # the object stays where it was: each grasp failed
+        yaws.append(float(policy.act({"qpos": None})["yaw"][0]))
+    assert len({round(y, 3) for y in yaws[:2]}) == 2  # the retry turned the jaws
+    with pytest.raises(NothingToSort, match="failed grasps"):
+        policy.act({"qpos": None})
