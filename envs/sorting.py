@@ -52,6 +52,7 @@ __all__ = [
     "ROBOT_JOINTS",
     "WRIST_CAMERA",
     "InvalidActionError",
+    "workcell_places",
     "SortingConfig",
     "SortingEnv",
 ]
@@ -72,8 +73,9 @@ _UNSAFE = {"on_table", "in_inspection_area", "in_hand"}
 
 
 @lru_cache(maxsize=1)
-def _static_places() -> Places:
-    """The work cell's places (they do not depend on the objects)."""
+def workcell_places() -> Places:
+    """The work cell's places, e.g. the inspection area (static: they do not depend on the
+    objects; what a policy may know of the cell without seeing it)."""
     return Places.from_model(ik_model())
 
 
@@ -180,7 +182,7 @@ class SortingEnv(gym.Env):
     def reset(self, *, seed: int | None = None, options: dict | None = None):
         super().reset(seed=seed)
         layout_seed = int(self.np_random.integers(2**31 - 1))
-        places = _static_places()
+        places = workcell_places()
         layout = sample_layout(
             self.config.scene,
             layout_seed,

@@ -35,7 +35,7 @@ from tqdm import tqdm
 import ipbench.envs  # noqa: F401  (registers the environments)
 from ipbench.assets.objects import CATEGORIES
 from ipbench.envs.layout import SCENES
-from ipbench.envs.sorting import _static_places
+from ipbench.envs.sorting import workcell_places
 from ipbench.eval.files import ensure_writable
 from ipbench.eval.perception import PerceptionEvalConfig, model_key, trained_model
 from ipbench.eval.sorting_report import ThresholdSweep, load_episodes, write_report
@@ -155,7 +155,7 @@ class Task:
 def _validation_evidence(model, config: SortingEvalConfig) -> tuple[np.ndarray, np.ndarray]:
     """First-view confidence and correctness of every segment of the validation episodes."""
     seg, feat = config.perception.dataset.segmentation, config.perception.dataset.features
-    perceiver = Perceiver(model, _static_places().inspection_area.center, seg, feat)
+    perceiver = Perceiver(model, workcell_places().inspection_area.center, seg, feat)
     conf, correct = [], []
     for scene in SCENES:
         env = gym.make(
@@ -219,7 +219,7 @@ def prepare_models(
     policy_models = PolicyModels(
         gp=models["gp"],
         svm=models.get("svm"),
-        inspection_area=tuple(float(v) for v in _static_places().inspection_area.center),
+        inspection_area=tuple(float(v) for v in workcell_places().inspection_area.center),
         thresholds={c: ch.threshold for c, ch in choices.items()},
         segmentation=config.perception.dataset.segmentation,
         features=config.perception.dataset.features,

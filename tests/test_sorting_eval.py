@@ -14,7 +14,7 @@ import pytest
 import ipbench.envs  # noqa: F401
 import ipbench.eval.sorting as sorting
 from ipbench.assets.objects import CATEGORIES
-from ipbench.envs.sorting import _static_places
+from ipbench.envs.sorting import workcell_places
 from ipbench.eval.sorting import SortingEvalConfig, SortingEvalError, Task, run_sorting_eval
 from ipbench.perception.classifiers import make_classifier
 from ipbench.perception.cloud import depth_to_points
@@ -49,7 +49,7 @@ def models() -> PolicyModels:
     y = np.array(labels)
     gp = make_classifier("gp", 5).fit(X, y).model_
     svm = make_classifier("svm", 5).fit(np.concatenate([X] * 3), np.concatenate([y] * 3))
-    area = tuple(float(v) for v in _static_places().inspection_area.center)
+    area = tuple(float(v) for v in workcell_places().inspection_area.center)
     return PolicyModels(
         gp=PerceptionModel(CATEGORIES, codebook, gp, "test-gp"),
         svm=PerceptionModel(CATEGORIES, codebook, svm, "test-svm"),
