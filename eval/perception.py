@@ -45,6 +45,7 @@ __all__ = [
     "encode",
     "model_key",
     "trained_model",
+    "trained_models",
 ]
 
 SUBSETS: dict[str, tuple[str, ...]] = {
@@ -105,30 +106,55 @@ def _fit_codebook(train: ViewSet, config: PerceptionEvalConfig) -> Codebook:
     return Codebook.fit(train.descriptors[take], config.codebook_size, config.seed)
 
 
+def trained_models(
+    cache: Path,
+    config: PerceptionEvalConfig = PerceptionEvalConfig(),
+    classes: tuple[str, ...] = CATEGORIES,
+    classifiers: tuple[str, ...] = ("gp",),
+) -> dict[str, PerceptionModel]:
+    """The perception models (codebook + classifier, each one of ``"gp"``, ``"gp_mode"``,
+    ``"svm"``, ``"sklearn_gp"``) for ``classes``, cached in ``cache`` (trained if missing,
+    stale or corrupt) — what the sorting policies classify with. Models trained together
+    share one dataset load, codebook and encoding."""
+    shared: dict = {}
+
+    def training_data() -> tuple[Codebook, np.ndarray, np.ndarray]:
+        if not shared:
+            views = load_or_build(cache, config.dataset)
+            train_views = views.subset((views.source == "isolated") & views.known)
+            codebook = _fit_codebook(train_views, config)
+            keep = np.isin(train_views.labels, [CATEGORIES.index(c) for c in classes])
+            labels = np.array([classes.index(CATEGORIES[v]) for v in train_views.labels[keep]])
+            shared["data"] = (codebook, encode(train_views, codebook)[keep], labels)
+        return shared["data"]
+
+    def trainer(classifier: str, key: str):
+        def train() -> PerceptionModel:
+            codebook, x, y = training_data()
+            clf = make_classifier(classifier, n_classes=len(classes), seed=config.seed)
+            clf.fit(x, y)
+            fitted = clf.model_ if isinstance(clf, GPClassifier) else clf
+            return PerceptionModel(tuple(classes), codebook, fitted, key)
+
+        return train
+
+    models = {}
+    with threadpool_limits(1):
+        for classifier in classifiers:
+            key = model_key(config, classes, classifier)
+            path = Path(cache) / f"model-{key}.npz"
+            models[classifier] = load_or_train(path, key, trainer(classifier, key))
+    return models
+
+
 def trained_model(
     cache: Path,
     config: PerceptionEvalConfig = PerceptionEvalConfig(),
     classes: tuple[str, ...] = CATEGORIES,
     classifier: str = "gp",
 ) -> PerceptionModel:
-    """The perception model (codebook + ``classifier``, one of ``"gp"``, ``"gp_mode"``,
-    ``"svm"``, ``"sklearn_gp"``) for ``classes``, cached in ``cache`` (trained if missing,
-    stale or corrupt) — what the sorting policies classify with."""
-    key = model_key(config, classes, classifier)
-
-    def train() -> PerceptionModel:
-        views = load_or_build(cache, config.dataset)
-        train_views = views.subset((views.source == "isolated") & views.known)
-        codebook = _fit_codebook(train_views, config)
-        keep = np.isin(train_views.labels, [CATEGORIES.index(c) for c in classes])
-        labels = np.array([classes.index(CATEGORIES[v]) for v in train_views.labels[keep]])
-        clf = make_classifier(classifier, n_classes=len(classes), seed=config.seed)
-        clf.fit(encode(train_views, codebook)[keep], labels)
-        fitted = clf.model_ if isinstance(clf, GPClassifier) else clf
-        return PerceptionModel(tuple(classes), codebook, fitted, key)
-
-    with threadpool_limits(1):
-        return load_or_train(Path(cache) / f"model-{key}.npz", key, train)
+    """One model of :func:`trained_models`."""
+    return trained_models(cache, config, classes, (classifier,))[classifier]
 
 
 def encode(views: ViewSet, codebook: Codebook) -> np.ndarray:

@@ -3,7 +3,7 @@
 Policies x scenes x seeds, the same seeds for every policy (paired comparison). Steps:
 
 1. The perception models (GP; SVM when ``svm-ipm`` runs) are loaded from the cache or trained
-   (:func:`ipbench.eval.perception.trained_model`).
+   (:func:`ipbench.eval.perception.trained_models`).
 2. The confidence threshold of each interactive policy's classifier is chosen on validation
    seeds disjoint from the test seeds (:func:`ipbench.policies.threshold.choose_threshold`,
    first views of both standard scenes) and saved in the cache.
@@ -37,7 +37,7 @@ from ipbench.assets.objects import CATEGORIES
 from ipbench.envs.layout import SCENES
 from ipbench.envs.sorting import workcell_places
 from ipbench.eval.files import ensure_writable
-from ipbench.eval.perception import PerceptionEvalConfig, model_key, trained_model
+from ipbench.eval.perception import PerceptionEvalConfig, model_key, trained_models
 from ipbench.eval.sorting_report import ThresholdSweep, load_episodes, write_report
 from ipbench.policies import FUSIONS, POLICIES, NothingToSort, PolicyModels, make_policy
 from ipbench.policies.oracle import true_category
@@ -211,9 +211,8 @@ def prepare_models(
     cache = Path(cache)
     cache.mkdir(parents=True, exist_ok=True)
     with threadpool_limits(1):
-        models = {"gp": trained_model(cache, config.perception, CATEGORIES, "gp")}
-        if "svm-ipm" in config.policies:
-            models["svm"] = trained_model(cache, config.perception, CATEGORIES, "svm")
+        wanted = ("gp", "svm") if "svm-ipm" in config.policies else ("gp",)
+        models = trained_models(cache, config.perception, CATEGORIES, wanted)
         needed = {_CLASSIFIER[p] for p in config.policies if p in _CLASSIFIER}
         choices = {c: _threshold(cache, models[c], c, config) for c in sorted(needed)}
     policy_models = PolicyModels(
