@@ -5,21 +5,30 @@ Importing this package registers the environments::
     import gymnasium as gym
     import ipbench.envs  # noqa: F401  (registers the ids)
 
-    env = gym.make("ipbench/Sorting-v0", scene="cluttered", render_mode="rgb_array")
+    env = gym.make("ipbench/Sorting-v1", scene="cluttered", render_mode="rgb_array")
 
-``ipbench/Sorting-v0`` takes the scene as a keyword (``"uncluttered"`` or ``"cluttered"``);
+``ipbench/Sorting-v1`` takes the scene as a keyword (``"uncluttered"`` or ``"cluttered"``);
 the standard scenes are also registered as their own ids. A released id never changes
-behaviour: a change bumps the version.
+behaviour: a change bumps the version. ``-v0`` ids keep the first manipulation (fully opened
+jaws, blind descents; see :data:`ipbench.envs.sorting.V0`).
 """
 
 from gymnasium.envs.registration import register
 
-__all__ = ["ENV_IDS"]
+from ipbench.envs.sorting import V0
+
+__all__ = ["ENV_IDS", "LATEST"]
+
+LATEST = "ipbench/Sorting-v1"
+"""The id the benchmark runs."""
 
 ENV_IDS: dict[str, dict] = {
-    "ipbench/Sorting-v0": {},
-    "ipbench/SortingUncluttered-v0": {"scene": "uncluttered"},
-    "ipbench/SortingCluttered-v0": {"scene": "cluttered"},
+    "ipbench/Sorting-v0": dict(V0),
+    "ipbench/SortingUncluttered-v0": {"scene": "uncluttered", **V0},
+    "ipbench/SortingCluttered-v0": {"scene": "cluttered", **V0},
+    "ipbench/Sorting-v1": {},
+    "ipbench/SortingUncluttered-v1": {"scene": "uncluttered"},
+    "ipbench/SortingCluttered-v1": {"scene": "cluttered"},
 }
 """Every registered id and the keyword arguments it fixes."""
 

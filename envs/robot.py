@@ -199,8 +199,17 @@ class RobotController:
         )
 
     # -- execution -----------------------------------------------------------------------
-    def move_joints(self, targets: dict[str, float], speed_fraction: float | None = None) -> float:
-        """Drive the named joints to ``targets`` (rad) along a quintic; returns the sim time (s)."""
+    def move_joints(
+        self,
+        targets: dict[str, float],
+        speed_fraction: float | None = None,
+        stop: Callable[[], bool] | None = None,
+    ) -> float:
+        """Drive the named joints to ``targets`` (rad) along a quintic; returns the sim time (s).
+
+        A guarded move: when ``stop()`` turns true after a physics step, the joints' targets
+        are set to where the joints are and the motion ends there (a force-limited approach).
+        """
         frac = self.config.speed_fraction if speed_fraction is None else speed_fraction
         names = list(targets)
         acts = [self._joint[n][2] for n in names]
@@ -217,6 +226,9 @@ class RobotController:
             blend = s**3 * (10 - 15 * s + 6 * s * s)
             self.data.ctrl[acts] = start + (goal - start) * blend
             self._step()
+            if stop is not None and stop():
+                self.data.ctrl[acts] = [self.data.qpos[self._joint[n][0]] for n in names]
+                return self.data.time - t0
         qadr = [self._joint[n][0] for n in names]
         for _ in range(int(self.config.settle_timeout / dt)):
             if np.max(np.abs(self.data.qpos[qadr] - goal)) < self.config.settle_tolerance:
@@ -224,9 +236,15 @@ class RobotController:
             self._step()
         return self.data.time - t0
 
-    def move_to(self, result: IKResult, speed_fraction: float | None = None) -> float:
-        """Execute an IK solution (its moving joints only)."""
-        return self.move_joints(dict(zip(result.joints, result.qpos, strict=True)), speed_fraction)
+    def move_to(
+        self,
+        result: IKResult,
+        speed_fraction: float | None = None,
+        stop: Callable[[], bool] | None = None,
+    ) -> float:
+        """Execute an IK solution (its moving joints only); ``stop``: see :meth:`move_joints`."""
+        targets = dict(zip(result.joints, result.qpos, strict=True))
+        return self.move_joints(targets, speed_fraction, stop)
 
     def hold(self, duration: float) -> None:
         """Let the physics run for ``duration`` s with the current targets."""

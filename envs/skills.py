@@ -36,9 +36,17 @@ class SkillConfig:
     min_grasp_height : lowest TCP height above the table (the pads are 6 cm tall).
     grasp_depth : how far below the reported position the TCP goes (grasping a segment's
         centroid a little lower holds tall objects better), clamped by ``min_grasp_height``.
-    open_width, close_time, release_time : gripper half-opening (m) and waiting times.
+    open_width, close_time, release_time : gripper half-opening (m) and waiting times (the
+        close time counts from when the closing fingers' target reaches zero).
+    finger_speed : how fast each finger's target moves when closing (m/s; 0.1 closes the
+        jaws at 0.2 m/s, an electric parallel gripper's speed): fingers that slam shut on an
+        object would launch light neighbours. ``None`` steps the target shut at once
+        (``Sorting-v0``).
     min_held_width : a grasp holds something only if the jaws stay at least this far apart.
     bin_release_clearance : height of the held object's bottom above the bin rim at release.
+    min_opening : narrowest jaw opening a pick pre-shapes to (m, full opening).
+    guard_force : a pick's descent stops where the contact force on the gripper exceeds this
+        (N), as a robot with a wrist force sensor would; ``None`` descends blind.
     """
 
     transit_height: float = 0.36
@@ -46,10 +54,13 @@ class SkillConfig:
     min_grasp_height: float = 0.04
     grasp_depth: float = 0.02
     open_width: float = 0.105
-    close_time: float = 0.45
+    close_time: float = 0.3
+    finger_speed: float | None = 0.1
     release_time: float = 0.35
     min_held_width: float = 0.004
     bin_release_clearance: float = 0.10
+    min_opening: float = 0.03
+    guard_force: float | None = 20.0
 
 
 @dataclass(frozen=True)
@@ -70,6 +81,15 @@ class Skills:
         model = robot.model
         self.grasp_actuator = model.actuator(f"{GRIPPER_ARM}_gripper_grasp").id
         self._finger = model.jnt_qposadr[model.joint(f"{GRIPPER_ARM}_gripper_finger_a").id]
+        gripper_bodies = {
+            b
+            for b in range(model.nbody)
+            if model.body(b).name.startswith(f"{GRIPPER_ARM}_gripper_")
+        }
+        self._gripper_geom = np.array(
+            [model.geom_bodyid[g] in gripper_bodies for g in range(model.ngeom)]
+        )
+        self._tcp = model.site(f"{GRIPPER_ARM}_gripper_tcp").id
         self.pads = (
             model.geom(f"{GRIPPER_ARM}_gripper_pad_a").id,
             model.geom(f"{GRIPPER_ARM}_gripper_pad_b").id,
@@ -108,6 +128,18 @@ class Skills:
         self.robot.data.ctrl[self.grasp_actuator] = width
         self.robot.hold(wait)
 
+    def _close(self) -> None:
+        """Close the jaws at ``finger_speed`` and let the grip settle for ``close_time``."""
+        ctrl = self.robot.data.ctrl
+        start = float(ctrl[self.grasp_actuator])
+        dt = self.robot.model.opt.timestep
+        speed = self.config.finger_speed
+        n = 0 if speed is None else int(np.ceil(start / (speed * dt)))
+        for k in range(1, n + 1):
+            ctrl[self.grasp_actuator] = start * (1 - k / n)
+            self.robot.hold(dt)
+        self._gripper(0.0, self.config.close_time)
+
     def _pads_touch_object(self) -> bool:
         data = self.robot.data
         touched = [False, False]
@@ -117,6 +149,23 @@ class Skills:
                 if other >= 0 and self._free_geoms[other]:
                     touched[k] = True
         return all(touched)
+
+    def gripper_contact_force(self) -> float:
+        """Total normal contact force (N) between the gripper and anything else."""
+        model, data = self.robot.model, self.robot.data
+        n = data.ncon
+        if n == 0:
+            return 0.0
+        g1, g2 = data.contact.geom1[:n], data.contact.geom2[:n]
+        total, force = 0.0, np.zeros(6)
+        for i in np.flatnonzero(self._gripper_geom[g1] != self._gripper_geom[g2]):
+            mujoco.mj_contactForce(model, data, int(i), force)
+            total += abs(force[0])
+        return total
+
+    def _touched(self) -> bool:
+        guard = self.config.guard_force
+        return guard is not None and self.gripper_contact_force() > guard
 
     def is_holding(self) -> bool:
         """Both pads touch a free object and the jaws did not close on nothing."""
@@ -164,8 +213,13 @@ class Skills:
         self.robot.move_to(result)
         return SkillResult(name, True, "", self._t() - t0)
 
-    def pick(self, position: np.ndarray, yaw: float) -> SkillResult:
-        """Grasp whatever is at ``position`` (3,) (world, m) with the jaws along ``yaw`` (rad)."""
+    def pick(self, position: np.ndarray, yaw: float, opening: float | None = None) -> SkillResult:
+        """Grasp whatever is at ``position`` (3,) (world, m) with the jaws along ``yaw`` (rad),
+        pre-shaped to ``opening`` (m, full jaw opening; None: fully open).
+
+        The descent is guarded (:attr:`SkillConfig.guard_force`): where a jaw lands on
+        something the arm stops and the jaws close there.
+        """
         t0 = self._t()
         if self.holding:
             return SkillResult("pick", False, "already holding an object", 0.0)
@@ -177,12 +231,17 @@ class Skills:
             grasp = self.tool_pose(position, z, yaw, q0=above.q)
         except PlanningError as err:
             return SkillResult("pick", False, f"unreachable: {err}", 0.0)
-        self._gripper(self.config.open_width, 0.0)
+        half = self.config.open_width
+        if opening is not None:
+            half = float(np.clip(opening / 2, self.config.min_opening / 2, half))
+        self._gripper(half, 0.0)
         self.robot.move_to(above)
-        self.robot.move_to(grasp, speed_fraction=0.25)
-        self._gripper(0.0, self.config.close_time)
+        self.robot.move_to(grasp, speed_fraction=0.25, stop=self._touched)
         self.grasp_yaw = yaw
-        self.grasp_height = z - table
+        # where the TCP stopped (a guarded descent can stop above the planned height)
+        reached = self.robot.data.site_xpos[self._tcp][2] if self.config.guard_force else z
+        self.grasp_height = float(reached) - table
+        self._close()
         self._retreat()
         self.holding = self.is_holding()
         if not self.holding:

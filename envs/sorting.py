@@ -1,15 +1,18 @@
-"""``ipbench/Sorting-v0``: sort the objects on the table into their category's bin.
+"""``ipbench/Sorting-v1`` (and ``-v0``): sort the objects on the table into their category's bin.
 
 The public contract (external policies and the benchmark's checks rely on it; the README
 documents it):
 
 * Categories, in bin order: ``juice_bottle, milk_carton, bowl, mug, juice_box``.
-* Action: ``{"command": Discrete(3), "position": Box(3), "yaw": Box(1), "bin": Discrete(5)}``.
+* Action: ``{"command": Discrete(3), "position": Box(3), "yaw": Box(1), "bin": Discrete(5),
+  "opening": Box(1)}`` (v0: no ``opening``).
   ``0 = place_in_bin``: pick whatever is at ``position`` (world frame, m) with the jaws turned
-  to ``yaw`` and drop it in bin ``bin``; ``1 = inspect_in_area``: pick it and set it down in
-  the inspection area (or, when an object is already there or in hand, turn it by ``yaw``
-  there); ``2 = inspect_in_hand``: pick it and present it to the wrist camera (or, with an
-  object in hand or in the area, turn it by ``yaw`` and present it again). While an object
+  to ``yaw`` and opened to ``opening`` (m, at most ``MAX_JAW_OPENING``; the descent stops
+  where a jaw lands on something) and drop it in bin ``bin``; ``1 = inspect_in_area``: pick
+  it and set it down in the inspection area (or, when an object is already there or in
+  hand, turn it by ``yaw`` there); ``2 = inspect_in_hand``: pick it and present it to the
+  wrist camera (or, with an object in hand or in the area, turn it by ``yaw`` and present it
+  again). While an object
   is in hand or in the area, ``place_in_bin`` acts on it and ``position`` is ignored. Each
   inspect step's observation is the new view; after ``place_in_bin`` the camera looks at
   the table again.
@@ -21,10 +24,18 @@ documents it):
 * ``info``: ``objects`` (per object id: category, instance, known, pose (7,) position and
   quaternion of the object frame, center (3,) of its bounding box, status),
   ``wrist_mask`` (480x640 int16 object id per pixel, -1 = none), ``skills`` (what ran, with
-  success and reason), ``physics_unstable``. Ground truth lives only in ``info``.
+  success and reason), ``physics_undone`` (v1: this step's physics blew up and was rolled
+  back; its skill is reported as failed), ``physics_unstable`` (v0: it blew up).
+  Ground truth lives only in ``info``.
 * Reward: +1 per object that lands in its own bin, -1 in another bin, ``-step_cost`` per skill.
   Terminated when no object is left on the table, in the area or in hand; truncated at
-  ``max_steps`` or when the physics goes unstable.
+  ``max_steps`` or (v0) when the physics blows up: a non-finite state, a MuJoCo warning, or
+  (v1 only, which rolls the step back instead) an object moving faster than
+  ``MAX_OBJECT_SPEED``.
+
+Versions: v1 pre-shapes the jaws, guards the descent, closes the fingers at a gripper's speed
+with realistic finger inertia, and rolls back contact blow-ups (:data:`V0` lists what v0
+fixes instead). Before v1 a grasp in clutter could launch the neighbours off the table.
 """
 
 from __future__ import annotations
@@ -38,7 +49,13 @@ import mujoco
 import numpy as np
 from gymnasium import spaces
 
-from ipbench.assets.compose import CAMERA_ARM, GRIPPER_ARM, HEAD_SIDES, arm_joint_names
+from ipbench.assets.compose import (
+    CAMERA_ARM,
+    GRIPPER_ARM,
+    HEAD_SIDES,
+    arm_joint_names,
+    build_workcell_spec,
+)
 from ipbench.assets.objects import CATEGORIES
 from ipbench.envs.depth_noise import DepthNoiseConfig, DepthNoiseModel
 from ipbench.envs.layout import SCENES, sample_layout
@@ -52,6 +69,9 @@ __all__ = [
     "ROBOT_JOINTS",
     "WRIST_CAMERA",
     "InvalidActionError",
+    "MAX_JAW_OPENING",
+    "MAX_OBJECT_SPEED",
+    "V0",
     "workcell_places",
     "SortingConfig",
     "SortingEnv",
@@ -70,6 +90,12 @@ ROBOT_JOINTS: tuple[str, ...] = (
 """Joint names of ``observation["qpos"]``, in order (rad; the two fingers in m)."""
 WRIST_SIZE = (480, 640)
 _UNSAFE = {"on_table", "in_inspection_area", "in_hand"}
+UNDONE_REASON = "undone: the contact solver blew up during this step, which was rolled back"
+MAX_JAW_OPENING = 0.21
+"""The gripper's full jaw opening (m): the largest ``action["opening"]``."""
+MAX_OBJECT_SPEED = 6.0
+"""An object moving faster than this (m/s; a fall from 1.8 m) means the contact solver blew
+up: the robot moves at most ~3 m/s and nothing in the cell can throw that fast."""
 
 
 @lru_cache(maxsize=1)
@@ -98,6 +124,13 @@ class SortingConfig:
     depth_noise : the wrist camera's noise model; ``DepthNoiseConfig(enabled=False)`` for
         ideal depth.
     motion, skills : robot motion and skill settings.
+    jaw_opening : the action has an ``opening`` (the gripper pre-shapes to it before a
+        pick); without it every pick opens the jaws fully (``Sorting-v0``).
+    undo_blowups : a step during which the contact solver blew up (an object faster than
+        ``MAX_OBJECT_SPEED``, a non-finite state or a MuJoCo warning) is rolled back and its
+        skill reported as failed, instead of truncating the episode (``Sorting-v0``).
+    finger_armature : reflected inertia of each gripper finger's drive (kg); ``None`` keeps
+        the model's (``assets/motoman/gripper.xml``).
     """
 
     scene: str = "uncluttered"
@@ -109,6 +142,19 @@ class SortingConfig:
     depth_noise: DepthNoiseConfig = field(default_factory=DepthNoiseConfig)
     motion: MotionConfig = field(default_factory=MotionConfig)
     skills: SkillConfig = field(default_factory=SkillConfig)
+    jaw_opening: bool = True
+    undo_blowups: bool = True
+    finger_armature: float | None = None
+
+
+V0: dict = {
+    "jaw_opening": False,
+    "undo_blowups": False,
+    "finger_armature": 0.05,
+    "skills": SkillConfig(close_time=0.45, finger_speed=None, guard_force=None),
+}
+"""The settings ``Sorting-v0`` fixes: no jaw pre-shaping, blind descents, fingers stepped
+shut, light fingers, and a blow-up truncates the episode."""
 
 
 class SortingEnv(gym.Env):
@@ -165,6 +211,8 @@ class SortingEnv(gym.Env):
                 "bin": spaces.Discrete(len(CATEGORIES)),
             }
         )
+        if self.config.jaw_opening:
+            self.action_space.spaces["opening"] = spaces.Box(0.0, MAX_JAW_OPENING, (1,), np.float32)
 
     # -- frames for videos -----------------------------------------------------------------
     def add_frame_listener(self, callback: Callable[[], None], fps: float = 30.0) -> None:
@@ -174,6 +222,9 @@ class SortingEnv(gym.Env):
     def _physics_step(self) -> None:
         t_before = self.data.time
         mujoco.mj_step(self.model, self.data)
+        speed = np.abs(self.data.qvel[self._object_dofs])
+        if not self._blew_up and not np.all(speed < MAX_OBJECT_SPEED):  # NaN too
+            self._blew_up = True
         for period, callback in self._frame_listeners:
             if int(self.data.time / period) != int(t_before / period):
                 callback()
@@ -190,10 +241,23 @@ class SortingEnv(gym.Env):
             places.spawn_area.half,
             places.table_height,
         )
-        self.world = build_world(layout)
+        spec = None
+        if self.config.finger_armature is not None:
+            spec = build_workcell_spec()
+            for finger in ("a", "b"):
+                spec.joint(
+                    f"{GRIPPER_ARM}_gripper_finger_{finger}"
+                ).armature = self.config.finger_armature
+        self.world = build_world(layout, spec)
         self.model = self.world.model
         self.data = mujoco.MjData(self.model)
         mujoco.mj_resetDataKeyframe(self.model, self.data, self.model.key("home").id)
+        m = self.model
+        # linear velocity dofs of every object's free joint
+        self._object_dofs = np.concatenate(
+            [m.jnt_dofadr[m.body_jntadr[b]] + np.arange(3) for b in self.world.object_bodies]
+        )
+        self._blew_up = False
         self.robot = RobotController(self.model, self.data, self._physics_step, self.config.motion)
         self.skills = Skills(self.robot, self.world.places, self.config.skills)
         if self._renderer is not None:
@@ -203,26 +267,39 @@ class SortingEnv(gym.Env):
         self.robot.hold(self.config.settle_time)
         # (ngeom + 1,): shiny geoms; the last entry stands for the background (id -1)
         self._specular_geoms = np.append(specular_geoms(self.model), False)
-        m = self.model
         self._robot_qadr = np.array([m.jnt_qposadr[m.joint(j).id] for j in self._robot_joints])
         # geom id -> object id (the last entry stands for the background, id -1)
         self._mask_lut = np.full(m.ngeom + 1, -1, np.int16)
         for g, k in self.world.object_geoms.items():
             self._mask_lut[g] = k
         self._steps = 0
-        self._area: tuple[np.ndarray, float] | None = None  # (grasp position, yaw) in the area
+        # (grasp position, yaw, jaw opening) of the object in the inspection area
+        self._area: tuple[np.ndarray, float, float | None] | None = None
+        self._jaws: float | None = None  # the last pick's jaw opening
         self._statuses = self._all_statuses()
-        self._unstable = False
+        self._unstable = self._blew_up
+        self._undone = False
         obs = self._observation()
         return obs, self._info([])
 
     def step(self, action):
         if self.world is None:
             raise RuntimeError("call reset() before step()")
-        command, position, yaw, bin_index = self._validate(action)
+        command, position, yaw, bin_index, opening = self._validate(action)
         self._steps += 1
         warnings_before = sum(w.number for w in self.data.warning)
-        results = self._execute(command, position, yaw, bin_index)
+        snapshot = self._snapshot() if self.config.undo_blowups else None
+        results = self._execute(command, position, yaw, bin_index, opening)
+        blew_up = bool(
+            self._blew_up
+            or not np.all(np.isfinite(self.data.qpos))
+            or sum(w.number for w in self.data.warning) > warnings_before
+        )
+        undone = blew_up and snapshot is not None
+        if undone:
+            self._restore(snapshot)
+            name = results[0].name if results else COMMANDS[command]
+            results = [SkillResult(name, False, UNDONE_REASON, 0.0)]
         before = self._statuses
         self._statuses = self._all_statuses()
         reward = -self.config.step_cost * sum(r.sim_time > 0 for r in results)
@@ -230,10 +307,8 @@ class SortingEnv(gym.Env):
             if status.startswith("in_bin:") and status != before[k]:
                 correct = status == f"in_bin:{self.world.layout.objects[k].instance.category}"
                 reward += 1.0 if correct else -1.0
-        self._unstable = bool(
-            not np.all(np.isfinite(self.data.qpos))
-            or sum(w.number for w in self.data.warning) > warnings_before
-        )
+        self._unstable = blew_up and not undone
+        self._undone = undone
         terminated = not any(s in _UNSAFE for s in self._statuses)
         truncated = self._unstable or self._steps >= self.max_steps
         obs = self._observation()
@@ -261,7 +336,7 @@ class SortingEnv(gym.Env):
             self._renderer = None
 
     # -- internals ---------------------------------------------------------------------------
-    def _validate(self, action) -> tuple[int, np.ndarray, float, int]:
+    def _validate(self, action) -> tuple[int, np.ndarray, float, int, float | None]:
         if not isinstance(action, dict) or set(action) != set(self.action_space.spaces):
             got = sorted(action) if isinstance(action, dict) else type(action).__name__
             raise InvalidActionError(
@@ -291,9 +366,17 @@ class SortingEnv(gym.Env):
             np.asarray(action["position"], float).reshape(3),
             float(np.asarray(action["yaw"]).reshape(-1)[0]),
             int(action["bin"]),
+            float(np.asarray(action["opening"]).reshape(-1)[0]) if "opening" in action else None,
         )
 
-    def _execute(self, command: int, position: np.ndarray, yaw: float, bin_index: int):
+    def _execute(
+        self,
+        command: int,
+        position: np.ndarray,
+        yaw: float,
+        bin_index: int,
+        opening: float | None = None,
+    ):
         sk, places = self.skills, self.world.places
         results: list[SkillResult] = []
 
@@ -305,12 +388,14 @@ class SortingEnv(gym.Env):
             """Get an object in hand: already held, from the area, or at ``target``."""
             if sk.holding:
                 return True
+            jaws = opening
             if self._area is not None:
-                target, grasp_yaw = self._area
+                target, grasp_yaw, jaws = self._area
                 self._area = None
             elif self._view != "scene":
                 run(sk.look(places.scene_view, places.scene_target))
-            return run(sk.pick(target, grasp_yaw))
+            self._jaws = jaws
+            return run(sk.pick(target, grasp_yaw, jaws))
 
         name = COMMANDS[command]
         if name == "place_in_bin":
@@ -325,6 +410,7 @@ class SortingEnv(gym.Env):
                 self._area = (
                     np.array([a[0], a[1], a[2] + sk.grasp_height + sk.config.grasp_depth]),
                     sk.grasp_yaw,
+                    self._jaws,
                 )
             run(sk.look(places.inspection_view, places.inspection_area.center, name="look_at_area"))
             self._view = "area"
@@ -334,6 +420,21 @@ class SortingEnv(gym.Env):
                 run(sk.present_in_hand(turn))
                 self._view = "hand"
         return results
+
+    def _snapshot(self) -> tuple:
+        """Everything a step changes: the physics state and the skills' and env's memory."""
+        spec = mujoco.mjtState.mjSTATE_INTEGRATION
+        state = np.empty(mujoco.mj_stateSize(self.model, spec))
+        mujoco.mj_getState(self.model, self.data, state, spec)
+        sk = self.skills
+        return state, (sk.holding, sk.grasp_height, sk.grasp_yaw), self._area, self._view
+
+    def _restore(self, snapshot: tuple) -> None:
+        state, skills, self._area, self._view = snapshot
+        mujoco.mj_setState(self.model, self.data, state, mujoco.mjtState.mjSTATE_INTEGRATION)
+        mujoco.mj_forward(self.model, self.data)
+        self.skills.holding, self.skills.grasp_height, self.skills.grasp_yaw = skills
+        self._blew_up = False
 
     def _place_arms_at_start(self) -> None:
         """Camera arm looking at the table, gripper arm parked clear of the camera's view."""
@@ -402,5 +503,6 @@ class SortingEnv(gym.Env):
             "wrist_mask": self._mask_lut[self._wrist_seg],
             "skills": [r.__dict__.copy() for r in results],
             "physics_unstable": self._unstable,
+            "physics_undone": self._undone,
             "sim_time": float(self.data.time),
         }

@@ -44,7 +44,7 @@ def _rate(fn, n: int) -> float:
 
 
 def bench_sim(scene: str = "uncluttered", seed: int = 0, repeats: int = 3) -> dict[str, float]:
-    env = gym.make("ipbench/Sorting-v0", scene=scene)
+    env = gym.make("ipbench/Sorting-v1", scene=scene)
     base = env.unwrapped
     reset_times = []
     for k in range(repeats):

@@ -36,7 +36,7 @@ def run_demo(
     summary = {}
     for scene in scenes:
         env = gym.make(
-            "ipbench/Sorting-v0", scene=scene, render_mode="rgb_array", max_steps=max_steps
+            "ipbench/Sorting-v1", scene=scene, render_mode="rgb_array", max_steps=max_steps
         )
         recorder = VideoRecorder(env, fps=20) if video else None
         policy = GroundTruthSorter()

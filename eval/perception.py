@@ -188,7 +188,7 @@ def segmentation_scores(
 
     out = {}
     for scene in SCENES:
-        env = gym.make("ipbench/Sorting-v0", scene=scene, depth_noise=config.dataset.depth_noise)
+        env = gym.make("ipbench/Sorting-v1", scene=scene, depth_noise=config.dataset.depth_noise)
         rows = []
         for seed in seeds:
             obs, info = env.reset(seed=seed)

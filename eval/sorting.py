@@ -56,7 +56,7 @@ __all__ = [
 ]
 
 BACKENDS: tuple[str, ...] = ("process", "ray")
-EPISODE_VERSION = 1
+EPISODE_VERSION = 2
 """Version of the episode record; part of the run fingerprint."""
 _CLASSIFIER = {"gp-ipm": "gp", "gp-ipm-area": "gp", "svm-ipm": "svm"}
 
@@ -159,7 +159,7 @@ def _validation_evidence(model, config: SortingEvalConfig) -> tuple[np.ndarray, 
     conf, correct = [], []
     for scene in SCENES:
         env = gym.make(
-            "ipbench/Sorting-v0", scene=scene, depth_noise=config.perception.dataset.depth_noise
+            "ipbench/Sorting-v1", scene=scene, depth_noise=config.perception.dataset.depth_noise
         )
         for seed in config.validation_seeds:
             obs, info = env.reset(seed=seed)
@@ -237,7 +237,7 @@ def _run_episode(task: Task, models: PolicyModels, config: SortingEvalConfig) ->
     t0 = time.perf_counter()
     n_objects = SCENES[task.scene].n_objects
     env = gym.make(
-        "ipbench/Sorting-v0",
+        "ipbench/Sorting-v1",
         scene=task.scene,
         render_mode="rgb_array" if task.video else None,
         max_steps=config.steps_per_object * n_objects + 10,
@@ -252,7 +252,7 @@ def _run_episode(task: Task, models: PolicyModels, config: SortingEvalConfig) ->
     policy.reset(task.seed)
     obs, info = env.reset(seed=task.seed)
     skills: Counter = Counter()
-    grasp_failures = steps = 0
+    grasp_failures = steps = undone = 0
     terminated = truncated = stopped = False
     while not (terminated or truncated):
         try:
@@ -267,6 +267,7 @@ def _run_episode(task: Task, models: PolicyModels, config: SortingEvalConfig) ->
             recorder.update(obs, policy.detections)
         obs, _, terminated, truncated, info = env.step(action)
         steps += 1
+        undone += bool(info.get("physics_undone"))
         for s in info["skills"]:
             skills[s["name"]] += 1
             grasp_failures += s["name"] == "pick" and not s["success"]
@@ -296,6 +297,7 @@ def _run_episode(task: Task, models: PolicyModels, config: SortingEvalConfig) ->
         "dropped": sum(o["status"] == "dropped" for o in objects),
         "inspections": sum(d.kind == "inspect" for d in policy.decisions),
         "grasp_failures": int(grasp_failures),
+        "physics_undone": int(undone),
         "steps": steps,
         "skills": dict(skills),
         "sim_time_s": round(float(info["sim_time"]), 2),

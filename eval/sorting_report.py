@@ -288,6 +288,10 @@ def _policy_summary(runs: Sequence[Mapping]) -> dict:
         "wall_time_s_mean": float(np.mean([ep["wall_time_s"] for ep in runs])),
         "sim_time_s_mean": float(np.mean([ep["sim_time_s"] for ep in runs])),
         "truncated": sum(bool(ep.get("truncated", False)) for ep in runs),
+        "dropped": sum(int(ep.get("dropped", 0)) for ep in runs),
+        "wrong_bin": sum(int(ep.get("wrong_bin", 0)) for ep in runs),
+        "left": sum(int(ep.get("left", 0)) for ep in runs),
+        "physics_undone": sum(int(ep.get("physics_undone", 0)) for ep in runs),
         "per_category": _per_category(runs),
     }
 
@@ -308,8 +312,10 @@ def summarize(episodes: Sequence[Mapping]) -> dict[str, dict[str, dict]]:
         fraction in ``[0, 1]``: mean and 95 % bootstrap interval), ``n`` (seeds), ``seeds``,
         ``objects`` and ``correct`` (summed over seeds), ``inspections_mean``,
         ``grasp_failures_mean`` (per episode), ``wall_time_s_mean``, ``sim_time_s_mean``
-        (s per episode), ``truncated`` (episodes cut by the step limit) and
-        ``per_category`` (``{category: {"correct", "total"}}`` summed over seeds, in bin order).
+        (s per episode), ``truncated`` (episodes cut by the step limit), ``dropped``,
+        ``wrong_bin``, ``left`` (objects, summed over seeds), ``physics_undone`` (steps whose
+        contact blow-up the env rolled back) and ``per_category``
+        (``{category: {"correct", "total"}}`` summed over seeds, in bin order).
 
     Raises
     ------
@@ -496,7 +502,7 @@ def _p(p: float) -> str:
 def _scene_table(summary: Mapping[str, Mapping]) -> list[str]:
     cats = _ordered({c for s in summary.values() for c in s["per_category"]}, CATEGORIES)
     head = ["policy", *map(_label, cats), "Total", "mean", "95 % CI", "seeds"]
-    head += ["inspections", "grasp failures", "wall time"]
+    head += ["inspections", "grasp failures", "dropped / wrong bin / left", "wall time"]
     lines = ["| " + " | ".join(head) + " |", "|---" * len(head) + "|"]
     for policy, s in summary.items():
         cells = [policy]
@@ -513,6 +519,7 @@ def _scene_table(summary: Mapping[str, Mapping]) -> list[str]:
             str(s["n"]),
             f"{s['inspections_mean']:.1f}",
             f"{s['grasp_failures_mean']:.1f}",
+            f"{s.get('dropped', 0)} / {s.get('wrong_bin', 0)} / {s.get('left', 0)}",
             f"{s['wall_time_s_mean']:.1f} s",
         ]
         lines.append("| " + " | ".join(cells) + " |")

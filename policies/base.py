@@ -1,6 +1,6 @@
 """What every sorting policy shares: the interface, the decision log, and scene handling.
 
-A policy is used on ``gymnasium.make("ipbench/Sorting-v0")`` episodes::
+A policy is used on ``gymnasium.make("ipbench/Sorting-v1")`` episodes::
 
     policy.reset(seed)
     obs, info = env.reset(seed=seed)
@@ -94,6 +94,7 @@ def place_action(target: GraspTarget, label: str, command: int = 0) -> dict:
         "position": target.position.astype(np.float32),
         "yaw": np.array([target.yaw], np.float32),
         "bin": CATEGORIES.index(label),
+        "opening": np.array([target.opening], np.float32),
     }
 
 

@@ -16,10 +16,11 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ipbench.envs.sorting import MAX_JAW_OPENING
 from ipbench.perception.segmentation import Segment, grasp_yaw
-from ipbench.policies.scripted import SHORT, TOP_MARGIN, clearest_yaw
+from ipbench.policies.scripted import OPENING_MARGIN, SHORT, TOP_MARGIN, clearest_yaw
 
-__all__ = ["FailureMemory", "GraspTarget", "completed_footprint", "grasp_target"]
+__all__ = ["FailureMemory", "GraspTarget", "completed_footprint", "grasp_target", "jaw_opening"]
 
 SQUARE = 1.2
 """Footprints whose sides differ by less than this ratio are near-square."""
@@ -29,10 +30,12 @@ MAX_COMPLETION = 0.05
 
 @dataclass(frozen=True)
 class GraspTarget:
-    """``position`` (3,) world m and jaw ``yaw`` (rad, in [-pi, pi)) for the env's action."""
+    """``position`` (3,) world m, jaw ``yaw`` (rad, in [-pi, pi)) and jaw ``opening`` (m: the
+    object's completed width across the jaws plus ``OPENING_MARGIN``) for the env's action."""
 
     position: np.ndarray
     yaw: float
+    opening: float = MAX_JAW_OPENING
 
 
 def _wrap(a: float) -> float:
@@ -78,10 +81,21 @@ def grasp_target(
     yaw = grasp_yaw(segment)  # across the box's y side
     if ext[0] < ext[1]:
         yaw += np.pi / 2
-    ext = np.sort(ext)
-    if ext[1] < SQUARE * max(ext[0], 1e-6):
+    lo, hi = np.sort(ext)
+    if hi < SQUARE * max(lo, 1e-6):
         yaw = clearest_yaw(position, [yaw, yaw + np.pi / 2], neighbours)
-    return GraspTarget(position, _wrap(yaw + turn * np.pi / 2))
+    yaw = _wrap(yaw + turn * np.pi / 2)
+    return GraspTarget(position, yaw, jaw_opening(segment, ext, yaw))
+
+
+def jaw_opening(segment: Segment, extent: np.ndarray, yaw: float) -> float:
+    """Jaw opening (m) for closing along ``yaw`` on ``segment``'s footprint of side lengths
+    ``extent`` (2,) (along the box's x and y): the footprint's width along the closing
+    direction plus ``OPENING_MARGIN``, at most the full opening."""
+    axes = np.asarray(segment.box_rotation, dtype=float)[:2, :2]
+    closing = np.array([np.cos(yaw), np.sin(yaw)])
+    width = float(np.abs(closing @ axes) @ np.asarray(extent, dtype=float))
+    return float(min(width + OPENING_MARGIN, MAX_JAW_OPENING))
 
 
 @dataclass

@@ -13,8 +13,17 @@ import mujoco
 import numpy as np
 
 from ipbench.assets.objects import CATEGORIES, get_instance
+from ipbench.envs.sorting import MAX_JAW_OPENING
 
-__all__ = ["GroundTruthSorter", "grasp_yaws", "clearest_yaw", "grasp_point", "ROUND"]
+__all__ = [
+    "GroundTruthSorter",
+    "grasp_yaws",
+    "clearest_yaw",
+    "grasp_point",
+    "jaw_span",
+    "OPENING_MARGIN",
+    "ROUND",
+]
 
 ROUND = frozenset({"juice_bottle", "bowl", "mug"})
 """Categories with a round body (any jaw yaw closes across it)."""
@@ -59,6 +68,9 @@ def clearest_yaw(center: np.ndarray, yaws: list[float], neighbours: list[np.ndar
     return max(yaws, key=clearance)
 
 
+OPENING_MARGIN = 0.05
+"""Clearance added to an object's width across the jaws when pre-shaping the gripper (m):
+2.5 cm a side covers depth noise in a segment's extent and a centring error."""
 SHORT = 0.15
 """Objects whose top is lower than this above their base (m) are grasped near the top."""
 TOP_MARGIN = 0.025
@@ -84,7 +96,9 @@ class GroundTruthSorter:
     waits until every other object has had as many tries.
     """
 
-    def __init__(self) -> None:
+    def __init__(self, jaw_opening: bool = True) -> None:
+        self.jaw_opening = jaw_opening
+        """Whether actions carry ``opening`` (``Sorting-v1``; v0 has no such key)."""
         self.failures: dict[int, int] = {}
         self._last: int | None = None
 
@@ -107,9 +121,23 @@ class GroundTruthSorter:
         others = [o["center"] for i, o in todo.items() if i != k]
         best = clearest_yaw(obj["center"], yaws, others)
         yaw = best + self.failures.get(k, 0) * np.pi / 2 if len(yaws) > 1 else best
-        return {
+        action = {
             "command": 0,
             "position": grasp_point(obj["center"], obj["pose"][3:], size).astype(np.float32),
             "yaw": np.array([(yaw + np.pi) % (2 * np.pi) - np.pi], np.float32),
             "bin": CATEGORIES.index(obj["category"]),
         }
+        if self.jaw_opening:
+            action["opening"] = np.array([jaw_span(obj["pose"][3:], size, yaw)], np.float32)
+        return action
+
+
+def jaw_span(quat: np.ndarray, size: tuple[float, float, float], yaw: float) -> float:
+    """Jaw opening (m) for closing along ``yaw`` on an object of bounding box ``size`` (its own
+    frame, m) turned by ``quat``: the box's width along the closing direction plus
+    :data:`OPENING_MARGIN`, at most the full opening."""
+    rot = np.empty(9)
+    mujoco.mju_quat2Mat(rot, np.asarray(quat, float))
+    closing = np.array([np.cos(yaw), np.sin(yaw), 0.0])
+    width = float(np.abs(closing @ rot.reshape(3, 3)) @ np.asarray(size, float))
+    return min(width + OPENING_MARGIN, MAX_JAW_OPENING)

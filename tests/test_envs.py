@@ -1,4 +1,5 @@
-"""One invariant battery over every registered environment id, then Sorting-v0's contract."""
+"""One invariant battery over every registered environment id, then Sorting-v1's contract
+and what v0 keeps."""
 
 from __future__ import annotations
 
@@ -73,7 +74,7 @@ def test_step_is_deterministic(env):
     results = []
     for _ in range(2):
         obs, info = env.reset(seed=1)
-        action = GroundTruthSorter().act(obs, info)
+        action = GroundTruthSorter("opening" in env.action_space.spaces).act(obs, info)
         results.append(env.step(action))
     (o1, r1, t1, tr1, i1), (o2, r2, t2, tr2, i2) = results
     _assert_equal_obs(o1, o2)
@@ -99,7 +100,7 @@ def _sort(env, seed: int):
 @pytest.mark.parametrize("seed", [0, 1, 2])
 def test_scripted_sorting_of_uncluttered_scene(seed):
     """Only the public contract: info's object centre as position, its category as bin."""
-    env = gym.make("ipbench/SortingUncluttered-v0")
+    env = gym.make("ipbench/SortingUncluttered-v1")
     info, terminated, total, skills = _sort(env, seed)
     env.close()
     statuses = [(o["status"], o["category"]) for o in info["objects"].values()]
@@ -111,7 +112,7 @@ def test_scripted_sorting_of_uncluttered_scene(seed):
 
 
 def test_inspect_in_hand_then_place():
-    env = gym.make("ipbench/SortingUncluttered-v0")
+    env = gym.make("ipbench/SortingUncluttered-v1")
     obs, info = env.reset(seed=5)
     action = GroundTruthSorter().act(obs, info)
     target = max(info["objects"], key=lambda k: info["objects"][k]["center"][1])
@@ -138,7 +139,7 @@ def test_inspect_in_hand_then_place():
 
 
 def test_inspect_in_area_turns_and_places():
-    env = gym.make("ipbench/SortingUncluttered-v0")
+    env = gym.make("ipbench/SortingUncluttered-v1")
     obs, info = env.reset(seed=6)
     action = GroundTruthSorter().act(obs, info)
     target = max(info["objects"], key=lambda k: info["objects"][k]["center"][1])
@@ -167,7 +168,7 @@ def test_inspect_in_area_turns_and_places():
     ],
 )
 def test_invalid_actions_raise_clear_errors(change, message):
-    env = gym.make("ipbench/SortingUncluttered-v0").unwrapped
+    env = gym.make("ipbench/SortingUncluttered-v1").unwrapped
     obs, info = env.reset(seed=0)
     action = dict(GroundTruthSorter().act(obs, info), **change)
     with pytest.raises(InvalidActionError, match=message):
@@ -176,9 +177,9 @@ def test_invalid_actions_raise_clear_errors(change, message):
 
 
 def test_unreachable_or_empty_positions_fail_softly():
-    env = gym.make("ipbench/SortingUncluttered-v0").unwrapped
+    env = gym.make("ipbench/SortingUncluttered-v1").unwrapped
     obs, info = env.reset(seed=0)
-    base = {"command": 0, "yaw": np.zeros(1, np.float32), "bin": 0}
+    base = {"command": 0, "yaw": np.zeros(1, np.float32), "bin": 0, "opening": np.ones(1) * 0.1}
     far = dict(base, position=np.array([-1.8, -1.8, 0.8], np.float32))
     obs, reward, terminated, truncated, info = env.step(far)
     failed = [s for s in info["skills"] if not s["success"]]
@@ -193,22 +194,80 @@ def test_unreachable_or_empty_positions_fail_softly():
     env.close()
 
 
-def test_physics_blow_up_truncates_with_a_flag():
+def test_v0_truncates_on_a_physics_blow_up():
     env = gym.make("ipbench/SortingUncluttered-v0").unwrapped
+    assert "opening" not in env.action_space.spaces
     obs, info = env.reset(seed=0)
     env.data.qvel[-6:] = 1e12  # an object's free joint flung at an absurd speed
-    action = {
-        "command": 0,
-        "position": np.array([-1.8, -1.8, 0.8], np.float32),
-        "yaw": np.zeros(1, np.float32),
-        "bin": 0,
-    }
-    action = GroundTruthSorter().act(obs, info)
+    action = GroundTruthSorter(jaw_opening=False).act(obs, info)
     obs, reward, terminated, truncated, info = env.step(action)
     assert truncated and info["physics_unstable"]
     env.close()
 
 
+def _fling_mid_step(env) -> None:
+    """Fling the last object at 50 m/s the first time the step records a frame."""
+    flung = []
+
+    def fling() -> None:
+        if not flung:
+            env.data.qvel[-6:-3] = (50.0, 0.0, 0.0)
+            flung.append(True)
+
+    env.add_frame_listener(fling, fps=30)
+
+
+def test_v1_rolls_a_blow_up_back():
+    env = gym.make("ipbench/SortingUncluttered-v1").unwrapped
+    obs, info = env.reset(seed=0)
+    qpos, t0 = env.data.qpos.copy(), info["sim_time"]
+    _fling_mid_step(env)
+    obs, reward, terminated, truncated, info = env.step(GroundTruthSorter().act(obs, info))
+    assert info["physics_undone"] and not info["physics_unstable"] and not truncated
+    assert [s["success"] for s in info["skills"]] == [False]
+    assert "rolled back" in info["skills"][0]["reason"]
+    assert info["sim_time"] == t0 and not env.skills.holding
+    np.testing.assert_array_equal(env.data.qpos, qpos)  # objects and robot as before
+    # the episode goes on: the same action now runs normally
+    env._frame_listeners.clear()
+    obs, reward, terminated, truncated, info = env.step(GroundTruthSorter().act(obs, info))
+    assert not info["physics_undone"] and info["skills"][0]["success"], info["skills"]
+    env.close()
+
+
+def test_pick_preshapes_the_jaws_and_guards_the_descent():
+    env = gym.make("ipbench/SortingUncluttered-v1").unwrapped
+    obs, info = env.reset(seed=0)
+    sk = env.skills
+    widths = []
+    env.add_frame_listener(lambda: widths.append(2 * float(env.data.qpos[sk._finger])), fps=60)
+    action = GroundTruthSorter().act(obs, info)
+    opening = float(action["opening"][0])
+    assert 0.03 < opening < 0.2
+    # aim 10 cm below the object's grasp point: the jaws land on it and the arm stops there
+    position = np.asarray(action["position"], float) - [0.0, 0.0, 0.10]
+    pad_z = []
+    sk.pick(position, float(action["yaw"][0]), opening)
+    pad_z.append(sk.grasp_height + env.world.places.table_height)
+    half_way = widths[len(widths) // 3 :]
+    assert max(half_way) <= opening + 0.005  # pre-shaped, never wider on the way down
+    assert pad_z[0] > position[2] - sk.config.grasp_depth + 0.02  # stopped above the target
+    env.close()
+
+
+def test_v0_keeps_its_manipulation():
+    v0 = gym.make("ipbench/SortingUncluttered-v0").unwrapped
+    v1 = gym.make("ipbench/SortingUncluttered-v1").unwrapped
+    v0.reset(seed=0)
+    v1.reset(seed=0)
+    assert v0.skills.config.guard_force is None and v1.skills.config.guard_force is not None
+    adr = v0.model.joint("left_gripper_finger_a").dofadr[0]
+    assert v0.model.dof_armature[adr] == pytest.approx(0.05)
+    assert v1.model.dof_armature[adr] > v0.model.dof_armature[adr]
+    v0.close()
+    v1.close()
+
+
 def test_unknown_scene_is_a_clear_error():
     with pytest.raises(ValueError, match="valid scenes: uncluttered, cluttered"):
-        gym.make("ipbench/Sorting-v0", scene="kitchen")
+        gym.make("ipbench/Sorting-v1", scene="kitchen")

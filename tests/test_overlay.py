@@ -164,7 +164,7 @@ def test_compose_frame_insets_in_corner():
 
 # -- with the real environment ------------------------------------------------------------------
 def _make_env():
-    return gym.make("ipbench/Sorting-v0", scene="uncluttered", render_mode="rgb_array")
+    return gym.make("ipbench/Sorting-v1", scene="uncluttered", render_mode="rgb_array")
 
 
 @pytest.fixture(scope="module")

@@ -7,12 +7,20 @@ import importlib
 import numpy as np
 import pytest
 
+from ipbench.envs.sorting import MAX_JAW_OPENING
 from ipbench.perception.segmentation import Segment
 from ipbench.policies import POLICIES, PolicyError, make_policy
+from ipbench.policies.base import place_action
 from ipbench.policies.fusion import FusionError, bayes_fusion, fuse, majority_vote
-from ipbench.policies.grasping import FailureMemory, completed_footprint, grasp_target
+from ipbench.policies.grasping import (
+    FailureMemory,
+    completed_footprint,
+    grasp_target,
+    jaw_opening,
+)
 from ipbench.policies.interactive import InteractiveConfig, InteractiveSorter
 from ipbench.policies.perceiver import Detection
+from ipbench.policies.scripted import OPENING_MARGIN
 from ipbench.policies.threshold import choose_threshold
 
 CLASSES = ("juice_bottle", "milk_carton", "bowl", "mug", "juice_box")
@@ -92,6 +100,24 @@ def test_footprint_is_completed_away_from_the_camera() -> None:
         abs(abs(turned.yaw - target.yaw) - np.pi / 2) < 1e-6
         or abs(abs(turned.yaw - target.yaw) - 3 * np.pi / 2) < 1e-6
     )
+
+
+def test_jaws_open_to_the_width_across_them() -> None:
+    """A 6 x 12 cm box closes across its 6 cm side, or its 12 cm side when turned; a wide
+    blob is capped at the gripper's full opening."""
+    seg = _segment([1.0, 0.0, 0.85], [0.06, 0.12, 0.2], yaw=0.3)
+    narrow = grasp_target(seg, [])
+    assert narrow.opening == pytest.approx(0.06 + OPENING_MARGIN)
+    assert abs(np.cos(narrow.yaw - 0.3)) == pytest.approx(1.0)  # closes along the box x
+    wide = grasp_target(seg, [], turn=1)
+    assert wide.opening == pytest.approx(0.12 + OPENING_MARGIN)
+    assert jaw_opening(seg, np.array([0.06, 0.12]), 0.3 + np.pi / 4) == pytest.approx(
+        (0.06 + 0.12) / np.sqrt(2) + OPENING_MARGIN
+    )
+    blob = _segment([1.0, 0.0, 0.85], [0.3, 0.4, 0.2])
+    assert grasp_target(blob, []).opening == MAX_JAW_OPENING
+    action = place_action(narrow, "mug")
+    assert action["opening"].shape == (1,) and action["opening"][0] == pytest.approx(0.11)
 
 
 def test_failure_memory_groups_nearby_attempts() -> None:

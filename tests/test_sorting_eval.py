@@ -33,7 +33,7 @@ FAST = SortingEvalConfig(scenes=("uncluttered",), seeds=(0,), steps_per_object=1
 def models() -> PolicyModels:
     """A small real model: codebook and classifiers from the segments of a few wrist views
     (labelled by the ground-truth masks), instead of the full rendered dataset."""
-    env = gym.make("ipbench/Sorting-v0", scene="uncluttered")
+    env = gym.make("ipbench/Sorting-v1", scene="uncluttered")
     views, labels = [], []
     for seed in (500, 501, 502):
         obs, info = env.reset(seed=seed)
@@ -67,7 +67,8 @@ def prepared(models, monkeypatch):
 
 RECORD_KEYS = {
     "scene", "policy", "seed", "objects", "correct", "accuracy", "per_category", "wrong_bin",
-    "left", "dropped", "inspections", "grasp_failures", "steps", "skills", "sim_time_s",
+    "left", "dropped", "inspections", "grasp_failures", "physics_undone", "steps", "skills",
+    "sim_time_s",
     "wall_time_s", "truncated", "stopped", "threshold", "decisions", "video",
 }  # fmt: skip
 

@@ -281,7 +281,8 @@ def test_write_report_writes_the_table_the_thesis_line_and_the_files(tmp_path):
     assert md.startswith("# ")
     assert "| gp-ipm | 18/24 | 24/24 | 30/36 | 72/84 (86 %) | 85.7 % | [85.7, 85.7] % | 6 |" in md
     assert "| random | 12/24 | 12/24 | 24/36 | 48/84 (57 %) | 57.1 % |" in md
-    assert "| 3.0 | 2.0 | 19.5 s |" in md
+    assert "| 3.0 | 2.0 | 0 / 0 / 0 | 19.5 s |" in md  # no drops in the synthetic records
+    assert "| grasp failures | dropped / wrong bin / left | wall time |" in md
     assert "| policy | bowl | mug | juice box | Total | mean | 95 % CI | seeds |" in md
     assert md.index("## uncluttered") < md.index("## cluttered")
     assert md.index("| gp-ipm |", md.index("## cluttered")) < md.index("| random |")
