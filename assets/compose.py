@@ -78,17 +78,19 @@ def build_robot_spec() -> mujoco.MjSpec:
 
 BIN_PITCH = 0.32
 """Distance between neighbouring bin centres along x (m)."""
-BIN_INTERIOR = (0.29, 0.36, 0.24)
-"""Inside length (x), width (y) and height (z) of a bin (m)."""
+BIN_INTERIOR = (0.29, 0.36, 0.32)
+"""Inside length (x), width (y) and height (z) of a bin (m). 32 cm deep holds five 29 cm
+juice bottles below the rim (``Sorting-v0``'s 24 cm bins overflowed: a bottle dropped on the
+pile knocked others out, often into the next bin)."""
 _BIN_WALL = 0.005  # half thickness (m)
 
 
-def _add_bins(scene: mujoco.MjSpec, categories: Sequence[str]) -> None:
-    """One open box per category along the ``bin_row_start`` site, coloured by material
-    ``bin_<category>``; a site ``bin_<category>`` fills each bin's inside (used to tell what
-    is in which bin)."""
+def _add_bins(scene: mujoco.MjSpec, categories: Sequence[str], depth: float) -> None:
+    """One open box per category along the ``bin_row_start`` site, ``depth`` m deep inside,
+    coloured by material ``bin_<category>``; a site ``bin_<category>`` fills each bin's
+    inside (used to tell what is in which bin)."""
     start = np.array(scene.site("bin_row_start").pos)
-    ix, iy, iz = (0.5 * v for v in BIN_INTERIOR)
+    ix, iy, iz = 0.5 * BIN_INTERIOR[0], 0.5 * BIN_INTERIOR[1], 0.5 * depth
     w = _BIN_WALL
     # (half size, centre) of the floor and the four walls, in the bin frame.
     panels = [
@@ -119,14 +121,14 @@ def _add_bins(scene: mujoco.MjSpec, categories: Sequence[str]) -> None:
         )
 
 
-def build_workcell_spec() -> mujoco.MjSpec:
+def build_workcell_spec(bin_depth: float = BIN_INTERIOR[2]) -> mujoco.MjSpec:
     """The work cell scene (``workcell.xml``, which includes the robot) with the robot's parts
-    and the bins attached; no objects yet."""
+    and the bins (``bin_depth`` m deep inside) attached; no objects yet."""
     from ipbench.assets.objects import CATEGORIES
 
     scene = _load("scenes", "workcell.xml")
     attach_robot_parts(scene)
-    _add_bins(scene, CATEGORIES)
+    _add_bins(scene, CATEGORIES, bin_depth)
     return scene
 
 

@@ -15,7 +15,13 @@ from functools import lru_cache
 import mujoco
 import numpy as np
 
-from ipbench.assets.compose import CAMERA_ARM, GRIPPER_ARM, arm_joint_names, build_workcell_spec
+from ipbench.assets.compose import (
+    BIN_INTERIOR,
+    CAMERA_ARM,
+    GRIPPER_ARM,
+    arm_joint_names,
+    build_workcell_spec,
+)
 from ipbench.envs.ik import ArmIK, IKConfig, IKResult
 
 __all__ = ["MotionConfig", "RobotController", "PlanningError", "ik_model"]
@@ -45,10 +51,10 @@ class MotionConfig:
     ik: IKConfig = IKConfig()
 
 
-@lru_cache(maxsize=1)
-def ik_model() -> mujoco.MjModel:
-    """The kinematic work cell used for planning (compiled once per process)."""
-    return build_workcell_spec().compile()
+@lru_cache(maxsize=2)
+def ik_model(bin_depth: float = BIN_INTERIOR[2]) -> mujoco.MjModel:
+    """The kinematic work cell used for planning (compiled once per process and bin depth)."""
+    return build_workcell_spec(bin_depth).compile()
 
 
 def _collision_geoms(model: mujoco.MjModel, prefix: str) -> list[int]:
@@ -70,6 +76,8 @@ class RobotController:
     model, data : the simulation.
     step : callback that advances the simulation one physics step.
     config : motion settings.
+    planning_model : the kinematic work cell to plan in (default :func:`ik_model`); it must
+        have the simulation's furniture.
     """
 
     def __init__(
@@ -78,9 +86,10 @@ class RobotController:
         data: mujoco.MjData,
         step: Callable[[], None],
         config: MotionConfig = MotionConfig(),
+        planning_model: mujoco.MjModel | None = None,
     ) -> None:
         self.model, self.data, self._step, self.config = model, data, step, config
-        kin = ik_model()
+        kin = ik_model() if planning_model is None else planning_model
         self._kin = kin
         furniture = [
             g

@@ -50,6 +50,7 @@ import numpy as np
 from gymnasium import spaces
 
 from ipbench.assets.compose import (
+    BIN_INTERIOR,
     CAMERA_ARM,
     GRIPPER_ARM,
     HEAD_SIDES,
@@ -131,6 +132,7 @@ class SortingConfig:
         skill reported as failed, instead of truncating the episode (``Sorting-v0``).
     finger_armature : reflected inertia of each gripper finger's drive (kg); ``None`` keeps
         the model's (``assets/motoman/gripper.xml``).
+    bin_depth : inside depth of the bins (m).
     """
 
     scene: str = "uncluttered"
@@ -145,16 +147,18 @@ class SortingConfig:
     jaw_opening: bool = True
     undo_blowups: bool = True
     finger_armature: float | None = None
+    bin_depth: float = BIN_INTERIOR[2]
 
 
 V0: dict = {
     "jaw_opening": False,
     "undo_blowups": False,
     "finger_armature": 0.05,
+    "bin_depth": 0.24,
     "skills": SkillConfig(close_time=0.45, finger_speed=None, guard_force=None),
 }
 """The settings ``Sorting-v0`` fixes: no jaw pre-shaping, blind descents, fingers stepped
-shut, light fingers, and a blow-up truncates the episode."""
+shut, light fingers, 24 cm deep bins, and a blow-up truncates the episode."""
 
 
 class SortingEnv(gym.Env):
@@ -241,9 +245,8 @@ class SortingEnv(gym.Env):
             places.spawn_area.half,
             places.table_height,
         )
-        spec = None
+        spec = build_workcell_spec(self.config.bin_depth)
         if self.config.finger_armature is not None:
-            spec = build_workcell_spec()
             for finger in ("a", "b"):
                 spec.joint(
                     f"{GRIPPER_ARM}_gripper_finger_{finger}"
@@ -258,7 +261,13 @@ class SortingEnv(gym.Env):
             [m.jnt_dofadr[m.body_jntadr[b]] + np.arange(3) for b in self.world.object_bodies]
         )
         self._blew_up = False
-        self.robot = RobotController(self.model, self.data, self._physics_step, self.config.motion)
+        self.robot = RobotController(
+            self.model,
+            self.data,
+            self._physics_step,
+            self.config.motion,
+            planning_model=ik_model(self.config.bin_depth),
+        )
         self.skills = Skills(self.robot, self.world.places, self.config.skills)
         if self._renderer is not None:
             self._renderer.close()

@@ -9,6 +9,7 @@ import pytest
 from gymnasium.utils.env_checker import check_env
 
 import ipbench.envs
+from ipbench.assets.compose import BIN_INTERIOR
 from ipbench.assets.objects import CATEGORIES
 from ipbench.envs.sorting import COMMANDS, InvalidActionError
 from ipbench.policies.scripted import GroundTruthSorter
@@ -264,6 +265,8 @@ def test_v0_keeps_its_manipulation():
     adr = v0.model.joint("left_gripper_finger_a").dofadr[0]
     assert v0.model.dof_armature[adr] == pytest.approx(0.05)
     assert v1.model.dof_armature[adr] > v0.model.dof_armature[adr]
+    depth = {v: 2 * env.world.places.bins["juice_bottle"].half[2] for v, env in ((0, v0), (1, v1))}
+    assert depth[0] == pytest.approx(0.24) and depth[1] == pytest.approx(BIN_INTERIOR[2])
     v0.close()
     v1.close()
 
