@@ -226,9 +226,10 @@ class SortingEnv(gym.Env):
     def _physics_step(self) -> None:
         t_before = self.data.time
         mujoco.mj_step(self.model, self.data)
-        speed = np.abs(self.data.qvel[self._object_dofs])
-        if not self._blew_up and not np.all(speed < MAX_OBJECT_SPEED):  # NaN too
-            self._blew_up = True
+        # v0 knows no speed limit (it truncated on NaN and warnings only)
+        if self.config.undo_blowups and not self._blew_up:
+            speed = np.abs(self.data.qvel[self._object_dofs])
+            self._blew_up = not np.all(speed < MAX_OBJECT_SPEED)  # NaN too
         for period, callback in self._frame_listeners:
             if int(self.data.time / period) != int(t_before / period):
                 callback()
