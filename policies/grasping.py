@@ -18,7 +18,7 @@ import numpy as np
 
 from ipbench.envs.sorting import MAX_JAW_OPENING
 from ipbench.perception.segmentation import Segment, grasp_yaw
-from ipbench.policies.scripted import OPENING_MARGIN, SHORT, TOP_MARGIN, clearest_yaw
+from ipbench.policies.scripted import SHORT, TOP_MARGIN, clearest_yaw, opening_across
 
 __all__ = ["FailureMemory", "GraspTarget", "completed_footprint", "grasp_target", "jaw_opening"]
 
@@ -92,10 +92,7 @@ def jaw_opening(segment: Segment, extent: np.ndarray, yaw: float) -> float:
     """Jaw opening (m) for closing along ``yaw`` on ``segment``'s footprint of side lengths
     ``extent`` (2,) (along the box's x and y): the footprint's width along the closing
     direction plus ``OPENING_MARGIN``, at most the full opening."""
-    axes = np.asarray(segment.box_rotation, dtype=float)[:2, :2]
-    closing = np.array([np.cos(yaw), np.sin(yaw)])
-    width = float(np.abs(closing @ axes) @ np.asarray(extent, dtype=float))
-    return float(min(width + OPENING_MARGIN, MAX_JAW_OPENING))
+    return opening_across(np.asarray(segment.box_rotation, dtype=float)[:2, :2], extent, yaw)
 
 
 @dataclass

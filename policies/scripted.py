@@ -21,6 +21,7 @@ __all__ = [
     "clearest_yaw",
     "grasp_point",
     "jaw_span",
+    "opening_across",
     "OPENING_MARGIN",
     "ROUND",
 ]
@@ -134,10 +135,16 @@ class GroundTruthSorter:
 
 def jaw_span(quat: np.ndarray, size: tuple[float, float, float], yaw: float) -> float:
     """Jaw opening (m) for closing along ``yaw`` on an object of bounding box ``size`` (its own
-    frame, m) turned by ``quat``: the box's width along the closing direction plus
-    :data:`OPENING_MARGIN`, at most the full opening."""
+    frame, m) turned by ``quat``: see :func:`opening_across`."""
     rot = np.empty(9)
     mujoco.mju_quat2Mat(rot, np.asarray(quat, float))
-    closing = np.array([np.cos(yaw), np.sin(yaw), 0.0])
-    width = float(np.abs(closing @ rot.reshape(3, 3)) @ np.asarray(size, float))
-    return min(width + OPENING_MARGIN, MAX_JAW_OPENING)
+    return opening_across(rot.reshape(3, 3)[:2], size, yaw)
+
+
+def opening_across(axes: np.ndarray, extent, yaw: float) -> float:
+    """Jaw opening (m) for closing along ``yaw`` on a box with side lengths ``extent`` (k,)
+    along axes whose horizontal parts are the columns of ``axes`` (2, k): the box's width
+    along the closing direction plus :data:`OPENING_MARGIN`, at most the full opening."""
+    closing = np.array([np.cos(yaw), np.sin(yaw)])
+    width = float(np.abs(closing @ np.asarray(axes, float)) @ np.asarray(extent, float))
+    return float(min(width + OPENING_MARGIN, MAX_JAW_OPENING))
