@@ -27,6 +27,9 @@ documents it):
   success and reason), ``physics_undone`` (v1: this step's physics blew up and was rolled
   back; its skill is reported as failed), ``physics_unstable`` (v0: it blew up).
   Ground truth lives only in ``info``.
+* ``reset(seed=..., options={"layout": Layout})`` sets the objects up as the given
+  :class:`~ipbench.envs.layout.Layout` instead of sampling the scene's (a capture rig or a
+  hand-made scene); without options the scene's seeded layout is used.
 * Reward: +1 per object that lands in its own bin, -1 in another bin, ``-step_cost`` per skill.
   Terminated when no object is left on the table, in the area or in hand; truncated at
   ``max_steps`` or (v0) when the physics blows up: a non-finite state, a MuJoCo warning, or
@@ -59,7 +62,7 @@ from ipbench.assets.compose import (
 )
 from ipbench.assets.objects import CATEGORIES
 from ipbench.envs.depth_noise import DepthNoiseConfig, DepthNoiseModel
-from ipbench.envs.layout import SCENES, sample_layout
+from ipbench.envs.layout import SCENES, Layout, sample_layout
 from ipbench.envs.robot import MotionConfig, RobotController, ik_model
 from ipbench.envs.sensors import SensorRenderer, camera_pose, intrinsics, specular_geoms
 from ipbench.envs.skills import SkillConfig, SkillResult, Skills
@@ -104,6 +107,25 @@ def workcell_places() -> Places:
     """The work cell's places, e.g. the inspection area (static: they do not depend on the
     objects; what a policy may know of the cell without seeing it)."""
     return Places.from_model(ik_model())
+
+
+def _layout_option(options: dict | None) -> Layout | None:
+    """The ``layout`` of ``reset``'s options, checked (None when not given)."""
+    options = options or {}
+    unknown = set(options) - {"layout"}
+    if unknown:
+        raise ValueError(f"unknown reset option(s) {sorted(unknown)}; valid: layout")
+    layout = options.get("layout")
+    if layout is None:
+        return None
+    if not isinstance(layout, Layout) or not layout.objects:
+        raise ValueError(
+            "options['layout'] must be an ipbench.envs.layout.Layout with at least one object, "
+            f"got {layout!r}"
+        )
+    if sorted(o.object_id for o in layout.objects) != list(range(len(layout.objects))):
+        raise ValueError("options['layout']: object ids must be 0 .. n-1, each once")
+    return layout
 
 
 class InvalidActionError(ValueError):
@@ -239,13 +261,15 @@ class SortingEnv(gym.Env):
         super().reset(seed=seed)
         layout_seed = int(self.np_random.integers(2**31 - 1))
         places = workcell_places()
-        layout = sample_layout(
-            self.config.scene,
-            layout_seed,
-            places.spawn_area.center,
-            places.spawn_area.half,
-            places.table_height,
-        )
+        layout = _layout_option(options)
+        if layout is None:
+            layout = sample_layout(
+                self.config.scene,
+                layout_seed,
+                places.spawn_area.center,
+                places.spawn_area.half,
+                places.table_height,
+            )
         spec = build_workcell_spec(self.config.bin_depth)
         if self.config.finger_armature is not None:
             for finger in ("a", "b"):

@@ -274,3 +274,33 @@ def test_v0_keeps_its_manipulation():
 def test_unknown_scene_is_a_clear_error():
     with pytest.raises(ValueError, match="valid scenes: uncluttered, cluttered"):
         gym.make("ipbench/Sorting-v1", scene="kitchen")
+
+
+def test_reset_with_a_layout_option_places_exactly_those_objects():
+    from dataclasses import replace
+
+    from ipbench.envs.layout import Layout
+    from ipbench.envs.sorting import workcell_places
+
+    env = gym.make("ipbench/Sorting-v1", scene="cluttered")
+    _, sampled = env.reset(seed=4)
+    one = env.unwrapped.world.layout.objects[3]
+    places = workcell_places()
+    custom = Layout("custom", 0, (replace(one, object_id=0),))
+    obs, info = env.reset(seed=4, options={"layout": custom})
+    assert env.observation_space.contains(obs)
+    assert len(info["objects"]) == 1 and len(sampled["objects"]) > 1
+    obj = info["objects"][0]
+    assert obj["instance"] == one.instance.name and obj["status"] == "on_table"
+    np.testing.assert_allclose(obj["pose"][:2], one.position[:2], atol=0.01)  # settled in place
+    assert abs(obj["pose"][2] - one.position[2]) < 0.01
+    assert places.table_height < obj["center"][2]
+    _, again = env.reset(seed=4)  # without options: the scene's own layout again
+    assert [o["instance"] for o in again["objects"].values()] == [
+        o["instance"] for o in sampled["objects"].values()
+    ]
+    with pytest.raises(ValueError, match="valid: layout"):
+        env.reset(seed=4, options={"objects": custom})
+    with pytest.raises(ValueError, match="at least one object"):
+        env.reset(seed=4, options={"layout": Layout("custom", 0, ())})
+    env.close()
