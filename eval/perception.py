@@ -1,13 +1,18 @@
 """``ipbench eval perception``: train and compare the classifiers on simulator views.
 
-Training views are the *known* instances, isolated (see :mod:`ipbench.perception.dataset`);
-the test sets are the *unknown* instances, same protocol, and segments cut out of cluttered
-scenes. The GP, the Platt-calibrated SVM and scikit-learn's one-vs-rest GP are trained on the
-same 256-word bag-of-words vectors, for all five classes and for the chapter-6 subset (juice
-bottle, milk carton, mug). Written to the output folder: ``metrics.json`` (keys ``5class``
-and ``3class``, each with ``gp``, ``svm``, ``sklearn_gp`` and their ``accuracy``,
-``log_loss``, ``ece``, ``fit_s``, ``predict_s`` on the unknown isolated instances, plus the
-same on cluttered segments under ``cluttered``), ``perception.md`` and PNG figures.
+Two viewing conditions, one model each (:data:`CONDITIONS`): ``scene`` models classify what the
+wrist camera sees on the table (and in the inspection area) and train on the *known*
+instances' isolated views; ``in_hand`` models classify an object held up to the camera and train
+on the known instances' in-hand views (see :mod:`ipbench.perception.dataset`). Both share one
+codebook, fitted on the isolated views. The test sets are the *unknown* instances (isolated,
+and in hand) and segments cut out of cluttered scenes. The GP, the Platt-calibrated SVM and
+scikit-learn's one-vs-rest GP are trained on the same 256-word bag-of-words vectors, for all
+five classes and for the chapter-6 subset (juice bottle, milk carton, mug). Written to the
+output folder: ``metrics.json`` (keys ``5class`` and ``3class``, each with ``gp``, ``svm``,
+``sklearn_gp`` and their ``accuracy``, ``log_loss``, ``ece``, ``fit_s``, ``predict_s`` on the
+unknown isolated instances, the same on cluttered segments under ``cluttered``, the in-hand
+model on unknown in-hand views under ``in_hand`` and the scene model on them under
+``in_hand_scene_model``), ``perception.md`` and PNG figures.
 """
 
 from __future__ import annotations
@@ -38,15 +43,21 @@ from ipbench.perception.segment_eval import match_segments
 from ipbench.perception.segmentation import segment_scene
 
 __all__ = [
+    "CONDITIONS",
     "PerceptionEvalConfig",
     "SUBSETS",
     "THESIS",
     "run_perception_eval",
+    "segmentation_scores",
     "encode",
     "model_key",
     "trained_model",
     "trained_models",
+    "training_views",
 ]
+
+CONDITIONS: dict[str, str] = {"scene": "isolated", "in_hand": "in_hand"}
+"""Viewing condition -> the view source its models train on (known instances only)."""
 
 SUBSETS: dict[str, tuple[str, ...]] = {
     "5class": CATEGORIES,
@@ -82,9 +93,13 @@ class PerceptionEvalConfig:
 
 
 def model_key(
-    config: PerceptionEvalConfig, classes: tuple[str, ...], classifier: str = "gp"
+    config: PerceptionEvalConfig,
+    classes: tuple[str, ...],
+    classifier: str = "gp",
+    condition: str = "scene",
 ) -> str:
-    """Hash of everything that determines the trained ``classifier`` model for ``classes``."""
+    """Hash of everything that determines the trained ``classifier`` model for ``classes``
+    in the viewing ``condition``."""
     text = json.dumps(
         [
             config.dataset.key(),
@@ -93,10 +108,18 @@ def model_key(
             config.seed,
             list(classes),
             classifier,
+            condition,
             MODEL_VERSION,
         ]
     )
     return hashlib.sha256(text.encode()).hexdigest()[:16]
+
+
+def training_views(views: ViewSet, condition: str = "scene") -> ViewSet:
+    """The known instances' views that train a ``condition`` model (see :data:`CONDITIONS`)."""
+    if condition not in CONDITIONS:
+        raise ValueError(f"unknown condition {condition!r}; valid: {', '.join(CONDITIONS)}")
+    return views.subset((views.source == CONDITIONS[condition]) & views.known)
 
 
 def _fit_codebook(train: ViewSet, config: PerceptionEvalConfig) -> Codebook:
@@ -111,26 +134,33 @@ def trained_models(
     config: PerceptionEvalConfig = PerceptionEvalConfig(),
     classes: tuple[str, ...] = CATEGORIES,
     classifiers: tuple[str, ...] = ("gp",),
+    condition: str = "scene",
 ) -> dict[str, PerceptionModel]:
     """The perception models (codebook + classifier, each one of ``"gp"``, ``"gp_mode"``,
-    ``"svm"``, ``"sklearn_gp"``) for ``classes``, cached in ``cache`` (trained if missing,
-    stale or corrupt) — what the sorting policies classify with. Models trained together
-    share one dataset load, codebook and encoding."""
+    ``"svm"``, ``"sklearn_gp"``) for ``classes`` in the viewing ``condition`` (one of
+    :data:`CONDITIONS`), cached in ``cache`` (trained if missing, stale or corrupt) — what the
+    sorting policies classify with. Models trained together share one dataset load, codebook
+    and encoding; the codebook is fitted on the isolated views in every condition."""
     shared: dict = {}
 
     def training_data() -> tuple[Codebook, np.ndarray, np.ndarray]:
         if not shared:
             views = load_or_build(cache, config.dataset)
-            train_views = views.subset((views.source == "isolated") & views.known)
-            codebook = _fit_codebook(train_views, config)
-            keep = np.isin(train_views.labels, [CATEGORIES.index(c) for c in classes])
-            labels = np.array([classes.index(CATEGORIES[v]) for v in train_views.labels[keep]])
-            shared["data"] = (codebook, encode(train_views, codebook)[keep], labels)
+            codebook = _fit_codebook(training_views(views, "scene"), config)
+            train = training_views(views, condition)
+            keep = np.isin(train.labels, [CATEGORIES.index(c) for c in classes])
+            labels = np.array([classes.index(CATEGORIES[v]) for v in train.labels[keep]])
+            shared["data"] = (codebook, encode(train, codebook)[keep], labels)
         return shared["data"]
 
     def trainer(classifier: str, key: str):
         def train() -> PerceptionModel:
             codebook, x, y = training_data()
+            if len(y) == 0:
+                raise ValueError(
+                    f"no {condition} training views in the dataset; set "
+                    "DatasetConfig.in_hand_views > 0 to render in-hand views"
+                )
             clf = make_classifier(classifier, n_classes=len(classes), seed=config.seed)
             clf.fit(x, y)
             fitted = clf.model_ if isinstance(clf, GPClassifier) else clf
@@ -141,7 +171,7 @@ def trained_models(
     models = {}
     with threadpool_limits(1):
         for classifier in classifiers:
-            key = model_key(config, classes, classifier)
+            key = model_key(config, classes, classifier, condition)
             path = Path(cache) / f"model-{key}.npz"
             models[classifier] = load_or_train(path, key, trainer(classifier, key))
     return models
@@ -159,6 +189,8 @@ def trained_model(
 
 def encode(views: ViewSet, codebook: Codebook) -> np.ndarray:
     """(n, k) bag-of-words vector of every view."""
+    if not len(views):
+        return np.zeros((0, codebook.size))
     return np.stack([codebook.encode(views.view(i)) for i in range(len(views))])
 
 
@@ -206,6 +238,39 @@ def segmentation_scores(
     return out
 
 
+def _fit(
+    name: str, x: np.ndarray, labels: np.ndarray, index: dict[int, int], seed: int, fitted: dict
+):
+    """Fit classifier ``name`` on the views whose category is in ``index`` (category -> class);
+    ``fitted`` collects ``(classifier, fit seconds)`` by name (``gp_mode`` reuses ``gp``)."""
+    keep = np.isin(labels, list(index))
+    y = np.array([index[v] for v in labels[keep]])
+    t0 = time.perf_counter()
+    if name == "gp_mode" and "gp" in fitted:  # the same fit, another predictive
+        fitted[name] = (
+            GPClassifier.from_model(fitted["gp"][0].model_.with_predictive("mode")),
+            fitted["gp"][1],
+        )
+    else:
+        clf = make_classifier(name, n_classes=len(index), seed=seed)
+        clf.fit(x[keep], y)
+        fitted[name] = (clf, time.perf_counter() - t0)
+    return fitted[name]
+
+
+def _score(clf, test: ViewSet, x: np.ndarray, index: dict[int, int]):
+    """Scores, probabilities and labels of ``clf`` on the views of ``test`` in ``index``."""
+    sel = np.isin(test.labels, list(index))
+    labels = np.array([index[v] for v in test.labels[sel]])
+    if not sel.any():
+        return {"n": 0}, np.zeros((0, len(index))), labels
+    t0 = time.perf_counter()
+    probs = clf.predict_proba(x[sel])
+    scores = _scores(probs, labels, len(index))
+    scores["predict_s"] = round(time.perf_counter() - t0, 3)
+    return scores, probs, labels
+
+
 def run_perception_eval(
     out: Path, cache: Path, config: PerceptionEvalConfig = PerceptionEvalConfig()
 ) -> dict:
@@ -221,51 +286,44 @@ def run_perception_eval(
 def _run_perception_eval(out: Path, cache: Path, config: PerceptionEvalConfig) -> dict:
     out.mkdir(parents=True, exist_ok=True)
     views = load_or_build(cache, config.dataset)
-    isolated = views.source == "isolated"
-    train = views.subset(isolated & views.known)
+    train = training_views(views, "scene")
+    hand_train = training_views(views, "in_hand")
     tests = {
-        "unknown": views.subset(isolated & ~views.known),
+        "unknown": views.subset((views.source == "isolated") & ~views.known),
         "cluttered": views.subset(views.source == "cluttered"),
+        "in_hand": views.subset((views.source == "in_hand") & ~views.known),
     }
     codebook = _fit_codebook(train, config)
     x_train = encode(train, codebook)
+    x_hand = encode(hand_train, codebook)
     x_tests = {name: encode(t, codebook) for name, t in tests.items()}
     metrics: dict = {}
     figures: dict = {}
     for subset, classes in SUBSETS.items():
         index = {CATEGORIES.index(c): i for i, c in enumerate(classes)}
-        keep = np.isin(train.labels, list(index))
-        y = np.array([index[v] for v in train.labels[keep]])
         metrics[subset] = {}
         fitted: dict = {}
+        fitted_hand: dict = {}
         for name in config.classifiers:
-            t0 = time.perf_counter()
-            if name == "gp_mode" and "gp" in fitted:  # the same fit, another predictive
-                clf = GPClassifier.from_model(fitted["gp"][0].model_.with_predictive("mode"))
-                fit_s = fitted["gp"][1]
-            else:
-                clf = make_classifier(name, n_classes=len(classes), seed=config.seed)
-                clf.fit(x_train[keep], y)
-                fit_s = time.perf_counter() - t0
-            fitted[name] = (clf, fit_s)
+            clf, fit_s = _fit(name, x_train, train.labels, index, config.seed, fitted)
             entry: dict = {"fit_s": round(fit_s, 3)}
-            for test_name, test in tests.items():
-                sel = np.isin(test.labels, list(index))
-                labels = np.array([index[v] for v in test.labels[sel]])
-                t0 = time.perf_counter()
-                probs = (
-                    clf.predict_proba(x_tests[test_name][sel])
-                    if sel.any()
-                    else np.zeros((0, len(classes)))
+            scores, probs, labels = _score(clf, tests["unknown"], x_tests["unknown"], index)
+            entry.update(scores)
+            figures[(subset, name, "unknown")] = (probs, labels)
+            for test_name, field_name in (
+                ("cluttered", "cluttered"),
+                ("in_hand", "in_hand_scene_model"),
+            ):
+                entry[field_name] = _score(clf, tests[test_name], x_tests[test_name], index)[0]
+            if len(hand_train):
+                hand_clf, hand_fit_s = _fit(
+                    name, x_hand, hand_train.labels, index, config.seed, fitted_hand
                 )
-                predict_s = time.perf_counter() - t0
-                scores = _scores(probs, labels, len(classes)) if sel.any() else {"n": 0}
-                scores["predict_s"] = round(predict_s, 3)
-                figures[(subset, name, test_name)] = (probs, labels)
-                if test_name == "unknown":
-                    entry.update(scores)
-                else:
-                    entry[test_name] = scores
+                scores, probs, labels = _score(
+                    hand_clf, tests["in_hand"], x_tests["in_hand"], index
+                )
+                entry["in_hand"] = {**scores, "fit_s": round(hand_fit_s, 3)}
+                figures[(subset, name, "in_hand")] = (probs, labels)
             metrics[subset][name] = entry
     segmentation = segmentation_scores(config.segmentation_seeds, config)
     (out / "metrics.json").write_text(json.dumps(metrics, indent=2))
@@ -282,6 +340,8 @@ def _run_perception_eval(out: Path, cache: Path, config: PerceptionEvalConfig) -
             "train_views": len(train),
             "unknown_views": len(tests["unknown"]),
             "cluttered_segments": len(tests["cluttered"]),
+            "in_hand_train_views": len(hand_train),
+            "in_hand_views": len(tests["in_hand"]),
             "codebook_size": config.codebook_size,
             "dataset_key": config.dataset.key(),
             "segmentation": segmentation,

@@ -124,7 +124,8 @@ def write_report(
     lines = [
         "# Perception: FPFH bag-of-words and GP classification on simulator views",
         "",
-        f"Training: {info['train_views']} views of the known instances (isolated). Test: "
+        f"Training: {info['train_views']} views of the known instances (isolated; the in-hand "
+        "model: their in-hand views). Test: "
         f"{info['unknown_views']} views of the unknown instances (isolated) and "
         f"{info['cluttered_segments']} segments cut out of cluttered scenes (labelled by "
         f"overlap with the ground truth). Codebook: {info['codebook_size']} words. "
@@ -162,6 +163,25 @@ def write_report(
                 f"{c.get('accuracy', float('nan')):.3f} | {c.get('log_loss', float('nan')):.3f} "
                 f"| {c.get('ece', float('nan')):.3f} | {'' if ref is None else f'{ref:.2f}'} |"
             )
+        hand = {n: m for n, m in metrics[subset].items() if m.get("in_hand", {}).get("n")}
+        if hand:
+            lines += [
+                "",
+                f"In hand: {info.get('in_hand_views', 0)} views of the unknown instances held up "
+                "to the wrist camera, classified by the in-hand model (trained on "
+                f"{info.get('in_hand_train_views', 0)} in-hand views of the known instances) "
+                "and by the table-top model above:",
+                "",
+                "| classifier | in-hand model accuracy | log loss | ECE | fit s | "
+                "table-top model accuracy |",
+                "|---|---|---|---|---|---|",
+            ]
+            for name, m in hand.items():
+                h, t = m["in_hand"], m.get("in_hand_scene_model", {})
+                lines.append(
+                    f"| {name} | {h['accuracy']:.3f} | {h['log_loss']:.3f} | {h['ece']:.3f} | "
+                    f"{h['fit_s']:.2f} | {t.get('accuracy', float('nan')):.3f} |"
+                )
         lines += [
             "",
             "Per-class recall / precision on the unknown instances:",

@@ -103,6 +103,9 @@ class _SklearnBased:
         return np.argmax(self.predict_proba(X), axis=1)
 
 
+_PLATT_FOLDS = 5
+
+
 class SVMClassifier(_SklearnBased):
     """RBF SVM, ``C`` from ``SVM_C_GRID`` (3-fold CV accuracy), Platt-calibrated (5-fold)."""
 
@@ -110,10 +113,17 @@ class SVMClassifier(_SklearnBased):
 
     def fit(self, X: np.ndarray, y: np.ndarray) -> SVMClassifier:
         X, y = np.asarray(X, dtype=float), np.asarray(y, dtype=np.int64)
+        counts = np.bincount(y, minlength=self.n_classes)
+        if counts[counts > 0].min() < _PLATT_FOLDS:  # a missing class is allowed
+            raise ClassifierError(
+                f"the SVM's Platt calibration ({_PLATT_FOLDS}-fold) needs at least "
+                f"{_PLATT_FOLDS} training views of each class it sees; got {counts.tolist()}"
+            )
         search = GridSearchCV(SVC(kernel="rbf", gamma="scale"), {"C": list(SVM_C_GRID)}, cv=3)
         self.C_ = float(search.fit(X, y).best_params_["C"])
         svc = SVC(kernel="rbf", C=self.C_, gamma="scale", random_state=self.seed)
-        self.estimator_ = CalibratedClassifierCV(svc, method="sigmoid", cv=5).fit(X, y)
+        self.estimator_ = CalibratedClassifierCV(svc, method="sigmoid", cv=_PLATT_FOLDS)
+        self.estimator_.fit(X, y)
         return self
 
 

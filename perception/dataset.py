@@ -7,7 +7,8 @@ side. Every view goes through the same perception as an episode: point cloud, ta
 prism and clustering; the largest segment's FPFH descriptors are stored (not yet encoded, so
 the codebook can be refitted). *Known* instances make the training set, *unknown* ones the
 test set; segments cut out of cluttered scenes, labelled by their overlap with the
-ground-truth masks, make the realistic test set.
+ground-truth masks, make the realistic test set. Each instance is also picked up and turned in
+front of the wrist camera (:mod:`ipbench.perception.hand_views`): the in-hand views.
 
 This module renders with the simulator (it produces data, like a capture rig); perception
 itself never reads simulator state. Results are cached on disk under a hash of the
@@ -45,7 +46,9 @@ from ipbench.envs.sorting import WRIST_CAMERA, WRIST_SIZE
 from ipbench.envs.world import Places, build_world
 from ipbench.perception.cloud import PerceptionError, depth_to_points
 from ipbench.perception.features import FeatureConfig, fpfh
+from ipbench.perception.hand_views import render_in_hand_views
 from ipbench.perception.segmentation import SegmentationConfig, segment_scene
+from ipbench.perception.viewset import ViewSet
 
 __all__ = [
     "DatasetConfig",
@@ -78,6 +81,11 @@ class DatasetConfig:
         ``per_category`` unknown instances of each category (for quick runs and tests).
     min_overlap : a cluttered segment is labelled with the object that covers at least this
         fraction of its pixels; segments without such an object (merged ones) are dropped.
+    in_hand_views : in-hand views per grasp (:mod:`ipbench.perception.hand_views`); 0 skips
+        them.
+    in_hand_turn_deg : rotation of the object in hand between those views (deg; thesis: 30).
+    in_hand_placements : grasps per resting pose, the object turned on the table by 360 deg /
+        this between them (the wrist alone turns through about 180 deg).
     depth_noise, segmentation, features : the sensor and perception settings.
     """
 
@@ -89,88 +97,27 @@ class DatasetConfig:
     cluttered_seeds: tuple[int, ...] = tuple(range(10_000, 10_012))
     min_overlap: float = 0.6
     per_category: int | None = None
+    in_hand_views: int = 6
+    in_hand_turn_deg: float = 30.0
+    in_hand_placements: int = 2
     depth_noise: DepthNoiseConfig = field(default_factory=DepthNoiseConfig)
     segmentation: SegmentationConfig = field(default_factory=SegmentationConfig)
     features: FeatureConfig = field(default_factory=FeatureConfig)
+
+    def __post_init__(self) -> None:
+        if self.in_hand_views < 0 or self.in_hand_placements < 1:
+            raise ValueError(
+                f"in_hand_views={self.in_hand_views}, in_hand_placements="
+                f"{self.in_hand_placements}; valid: in_hand_views >= 0 (0: none), "
+                "in_hand_placements >= 1"
+            )
+        if self.yaw_step_deg <= 0 or self.distance <= 0:
+            raise ValueError("yaw_step_deg and distance must be positive")
 
     def key(self) -> str:
         """Hash of everything that changes the data (the cache key)."""
         text = json.dumps({"v": DATASET_VERSION, **asdict(self)}, sort_keys=True, default=str)
         return hashlib.sha256(text.encode()).hexdigest()[:16]
-
-
-@dataclass(frozen=True)
-class ViewSet:
-    """Views with their FPFH descriptors.
-
-    Attributes
-    ----------
-    descriptors : (total, 33) float32 FPFH descriptors of all views, concatenated.
-    offsets : (n + 1,) int64: view i owns ``descriptors[offsets[i]:offsets[i+1]]``.
-    labels : (n,) category index (bin order).
-    instance : (n,) instance name.
-    known : (n,) bool, known (training) instance.
-    source : (n,) "isolated" or "cluttered".
-    """
-
-    descriptors: np.ndarray
-    offsets: np.ndarray
-    labels: np.ndarray
-    instance: np.ndarray
-    known: np.ndarray
-    source: np.ndarray
-
-    def __len__(self) -> int:
-        return len(self.labels)
-
-    def view(self, i: int) -> np.ndarray:
-        return self.descriptors[self.offsets[i] : self.offsets[i + 1]]
-
-    def subset(self, mask: np.ndarray) -> ViewSet:
-        idx = np.flatnonzero(mask)
-        parts = [self.view(i) for i in idx]
-        lengths = np.array([len(p) for p in parts], np.int64)
-        return ViewSet(
-            descriptors=np.concatenate(parts) if parts else np.zeros((0, 33), np.float32),
-            offsets=np.concatenate([[0], np.cumsum(lengths)]),
-            labels=self.labels[idx],
-            instance=self.instance[idx],
-            known=self.known[idx],
-            source=self.source[idx],
-        )
-
-    @staticmethod
-    def concat(sets: list[ViewSet]) -> ViewSet:
-        sets = [s for s in sets if len(s)]
-        if not sets:
-            return _EMPTY
-        lengths = np.concatenate([np.diff(s.offsets) for s in sets])
-        return ViewSet(
-            descriptors=np.concatenate([s.descriptors for s in sets]),
-            offsets=np.concatenate([[0], np.cumsum(lengths)]),
-            labels=np.concatenate([s.labels for s in sets]),
-            instance=np.concatenate([s.instance for s in sets]),
-            known=np.concatenate([s.known for s in sets]),
-            source=np.concatenate([s.source for s in sets]),
-        )
-
-    def save(self, path: Path) -> None:
-        np.savez_compressed(path, **asdict(self))
-
-    @classmethod
-    def load(cls, path: Path) -> ViewSet:
-        with np.load(path, allow_pickle=False) as data:
-            return cls(**{k: data[k] for k in cls.__dataclass_fields__})
-
-
-_EMPTY = ViewSet(
-    np.zeros((0, 33), np.float32),
-    np.zeros(1, np.int64),
-    np.zeros(0, np.int64),
-    np.zeros(0, "U32"),
-    np.zeros(0, bool),
-    np.zeros(0, "U16"),
-)
 
 
 def _views(config: DatasetConfig, inst: ObjectInstance):
@@ -254,16 +201,8 @@ def render_instance_views(inst: ObjectInstance, config: DatasetConfig) -> ViewSe
             labels.append(CATEGORIES.index(inst.category))
     finally:
         renderer.close()
-    lengths = np.array([len(d) for d in descriptors], np.int64)
     n = len(descriptors)
-    return ViewSet(
-        descriptors=np.concatenate(descriptors) if n else np.zeros((0, 33), np.float32),
-        offsets=np.concatenate([[0], np.cumsum(lengths)]),
-        labels=np.array(labels, np.int64),
-        instance=np.array([inst.name] * n, "U32"),
-        known=np.full(n, inst.known),
-        source=np.full(n, "isolated", "U16"),
-    )
+    return ViewSet.from_views(descriptors, labels, [inst.name] * n, [inst.known] * n, "isolated")
 
 
 def render_cluttered_segments(config: DatasetConfig, progress: bool = True) -> ViewSet:
@@ -294,15 +233,7 @@ def render_cluttered_segments(config: DatasetConfig, progress: bool = True) -> V
                 known.append(obj["known"])
     finally:
         env.close()
-    lengths = np.array([len(d) for d in descriptors], np.int64)
-    return ViewSet(
-        descriptors=np.concatenate(descriptors) if descriptors else np.zeros((0, 33), np.float32),
-        offsets=np.concatenate([[0], np.cumsum(lengths)]),
-        labels=np.array(labels, np.int64),
-        instance=np.array(names, "U32"),
-        known=np.array(known, bool),
-        source=np.full(len(labels), "cluttered", "U16"),
-    )
+    return ViewSet.from_views(descriptors, labels, names, known, "cluttered")
 
 
 class _Serial:
@@ -326,13 +257,37 @@ def _pool(workers: int):
     return ProcessPoolExecutor(workers, mp_context=multiprocessing.get_context("spawn"))
 
 
+_RENDERERS = {"isolated": render_instance_views, "in_hand": render_in_hand_views}
+"""Per-instance view sources and what renders them."""
+
+
+def _render_part(kind: str, inst: ObjectInstance, config: DatasetConfig) -> ViewSet:
+    return _RENDERERS[kind](inst, config)
+
+
+def _part_path(parts_dir: Path, kind: str, inst: ObjectInstance) -> Path:
+    return parts_dir / (f"{inst.name}.npz" if kind == "isolated" else f"{inst.name}.{kind}.npz")
+
+
+def _load_part(path: Path) -> ViewSet | None:
+    """A finished part, or None when it is missing or unreadable (then it is deleted)."""
+    if not path.exists():
+        return None
+    try:
+        return ViewSet.load(path)
+    except (OSError, ValueError, KeyError, zipfile.BadZipFile):
+        path.unlink()
+        return None
+
+
 def load_or_build(
     cache_dir: Path,
     config: DatasetConfig = DatasetConfig(),
     progress: bool = True,
     workers: int = 2,
 ) -> ViewSet:
-    """Every instance's isolated views and the cluttered-scene segments, cached or rendered.
+    """Every instance's isolated and in-hand views and the cluttered-scene segments, cached
+    or rendered.
 
     The cache file is ``cache_dir/views-<config hash>.npz``; one that cannot be read (corrupt
     or truncated) is reported and rebuilt. Instances render in ``workers`` processes and each
@@ -356,37 +311,37 @@ def load_or_build(
         if config.per_category is None
         or (inst.index % KNOWN_INSTANCES if not inst.known else inst.index) < config.per_category
     ]
-    parts: dict[str, ViewSet] = {}
-    for inst in chosen:
-        part = parts_dir / f"{inst.name}.npz"
-        if part.exists():
-            try:
-                parts[inst.name] = ViewSet.load(part)
-            except (OSError, ValueError, KeyError, zipfile.BadZipFile):
-                part.unlink()
-    todo = [inst for inst in chosen if inst.name not in parts]
+    kinds = [k for k in _RENDERERS if k != "in_hand" or config.in_hand_views > 0]
+    jobs = [(kind, inst) for inst in chosen for kind in kinds]
+    parts: dict[tuple[str, str], ViewSet] = {}
+    for kind, inst in jobs:
+        part = _load_part(_part_path(parts_dir, kind, inst))
+        if part is not None:
+            parts[kind, inst.name] = part
+    todo = [(kind, inst) for kind, inst in jobs if (kind, inst.name) not in parts]
     bar = tqdm(
-        total=len(chosen),
+        total=len(jobs),
         initial=len(parts),
         desc="rendering views",
-        unit="instance",
+        unit="part",
         disable=not progress,
     )
     with _pool(workers) as pool:
-        for inst, views in zip(
-            todo, pool.map(render_instance_views, todo, [config] * len(todo)), strict=True
-        ):
-            tmp = parts_dir / f"{inst.name}.tmp.npz"
+        done = pool.map(
+            _render_part, [k for k, _ in todo], [i for _, i in todo], [config] * len(todo)
+        )
+        for (kind, inst), views in zip(todo, done, strict=True):
+            final = _part_path(parts_dir, kind, inst)
+            tmp = final.with_name(final.name.replace(".npz", ".tmp.npz"))
             views.save(tmp)
-            tmp.replace(parts_dir / f"{inst.name}.npz")  # finished parts survive interruptions
-            parts[inst.name] = views
+            tmp.replace(final)  # finished parts survive interruptions
+            parts[kind, inst.name] = views
             bar.update()
     bar.close()
-    sets = [parts[inst.name] for inst in chosen]
+    sets = [parts[kind, inst.name] for kind, inst in jobs]
     part = parts_dir / "cluttered.npz"
-    try:
-        clutter = ViewSet.load(part)
-    except (OSError, ValueError, KeyError, zipfile.BadZipFile):
+    clutter = _load_part(part)
+    if clutter is None:
         clutter = render_cluttered_segments(config, progress)
         clutter.save(part)
     sets.append(clutter)

@@ -106,6 +106,16 @@ def test_unknown_classifier_lists_valid_names() -> None:
     assert issubclass(ClassifierError, ValueError)
 
 
+def test_svm_says_when_a_class_has_too_few_views_for_platt_calibration(data) -> None:
+    X, y, _, _ = data
+    few = np.concatenate([np.flatnonzero(y != 2), np.flatnonzero(y == 2)[:3]])
+    with pytest.raises(ClassifierError, match=r"at least 5 training views"):
+        make_classifier("svm", n_classes=5).fit(X[few], y[few])
+    absent = np.flatnonzero(y != 2)  # a class missing altogether is allowed
+    probs = make_classifier("svm", n_classes=5).fit(X[absent], y[absent]).predict_proba(X[:4])
+    assert probs.shape == (4, 5) and np.allclose(probs[:, 2], 0.0)
+
+
 # ----------------------------------------------------------------------------- metrics
 PROBS = np.array([[0.9, 0.1], [0.6, 0.4], [0.3, 0.7], [0.2, 0.8]])
 LABELS = np.array([0, 1, 1, 1])

@@ -2,12 +2,20 @@
 
 from __future__ import annotations
 
+import importlib
+import inspect
 import json
 
 import numpy as np
 import pytest
 
-from ipbench.eval.perception import PerceptionEvalConfig, run_perception_eval
+from ipbench.assets.objects import CATEGORIES
+from ipbench.eval.perception import (
+    CONDITIONS,
+    PerceptionEvalConfig,
+    run_perception_eval,
+    training_views,
+)
 from ipbench.perception.dataset import DatasetConfig, ViewSet, load_or_build
 
 TINY = DatasetConfig(
@@ -16,7 +24,31 @@ TINY = DatasetConfig(
     side_elevation_deg=None,
     cluttered_seeds=(10_000,),
     per_category=1,
+    in_hand_views=3,
+    in_hand_placements=2,
 )
+
+
+@pytest.mark.parametrize(
+    "name",
+    [
+        "ipbench.perception.dataset",
+        "ipbench.perception.viewset",
+        "ipbench.perception.hand_views",
+        "ipbench.eval.perception",
+    ],
+)
+def test_export_lists_name_the_public_definitions(name):
+    module = importlib.import_module(name)
+    assert all(hasattr(module, n) for n in module.__all__)
+    defined = {
+        n
+        for n, v in vars(module).items()
+        if not n.startswith("_")
+        and (inspect.isclass(v) or inspect.isfunction(v))
+        and v.__module__ == name
+    }
+    assert defined <= set(module.__all__), defined - set(module.__all__)
 
 
 @pytest.fixture(scope="module")
@@ -38,6 +70,53 @@ def test_views_cover_known_and_unknown_instances(views):
     for i in range(len(views)):
         d = views.view(i)
         assert d.ndim == 2 and d.shape[1] == 33 and len(d) > 10 and np.isfinite(d).all()
+
+
+def test_in_hand_views_show_each_instance_held_by_the_gripper(views):
+    hand = views.subset(views.source == "in_hand")
+    # 10 instances x (upright + side where it can lie) x 2 grasps x 3 views; a grasp may fail
+    assert len(hand) >= 0.8 * 3 * 2 * 18
+    assert set(hand.labels) == set(range(5))
+    assert hand.known.any() and (~hand.known).any()
+    for name, label in zip(hand.instance, hand.labels, strict=True):
+        assert name.rsplit("_", 1)[0] == CATEGORIES[label]
+    for i in range(len(hand)):
+        d = hand.view(i)
+        assert d.shape[1] == 33 and len(d) > 0 and np.isfinite(d).all()
+
+
+def test_each_condition_trains_on_its_own_known_views(views):
+    for condition, source in CONDITIONS.items():
+        train = training_views(views, condition)
+        assert len(train) > 0 and train.known.all() and (train.source == source).all()
+    with pytest.raises(ValueError, match="valid: scene, in_hand"):
+        training_views(views, "head")
+
+
+def test_in_hand_models_are_cached_apart_and_need_in_hand_views(views, tmp_path, monkeypatch):
+    import ipbench.eval.perception as perception
+
+    config = PerceptionEvalConfig(dataset=TINY, codebook_size=16)
+    monkeypatch.setattr(perception, "load_or_build", lambda cache, dataset: views)
+    scene = perception.trained_model(tmp_path, config)
+    hand = perception.trained_models(tmp_path, config, condition="in_hand")["gp"]
+    assert hand.key != scene.key and len(list(tmp_path.glob("model-*.npz"))) == 2
+    # one codebook for both conditions: the one fitted on the isolated views
+    np.testing.assert_array_equal(hand.codebook.centers, scene.codebook.centers)
+    without = views.subset(views.source != "in_hand")
+    monkeypatch.setattr(perception, "load_or_build", lambda cache, dataset: without)
+    with pytest.raises(ValueError, match="in_hand_views > 0"):
+        perception.trained_models(tmp_path / "other", config, condition="in_hand")
+
+
+def test_a_set_of_views_checks_its_source_and_lengths():
+    one = np.ones((4, 33), np.float32)
+    vs = ViewSet.from_views([one, one[:2]], [1, 2], ["a", "b"], [True, False], "in_hand")
+    assert len(vs) == 2 and vs.view(1).shape == (2, 33) and list(vs.offsets) == [0, 4, 6]
+    with pytest.raises(ValueError, match="valid: isolated, cluttered, in_hand"):
+        ViewSet.from_views([one], [1], ["a"], [True], "table")
+    with pytest.raises(ValueError, match="one entry per view"):
+        ViewSet.from_views([one], [1, 2], ["a"], [True], "isolated")
 
 
 def test_cache_is_reused_and_a_corrupt_file_is_rebuilt(cache, views, capsys):
@@ -74,7 +153,11 @@ def test_perception_eval_writes_the_report(cache, views, tmp_path):
                 assert np.isfinite(m[key]), (subset, name, key)
             assert 0 <= m["accuracy"] <= 1 and 0 <= m["ece"] <= 1
             assert "cluttered" in m
+            hand, table = m["in_hand"], m["in_hand_scene_model"]
+            assert hand["n"] == table["n"] > 0
+            assert 0 <= hand["accuracy"] <= 1 and 0 <= table["accuracy"] <= 1
     text = (tmp_path / "perception.md").read_text()
     assert "## 5class" in text and "## 3class" in text and "| cluttered |" in text
+    assert "In hand:" in text and "table-top model accuracy" in text
     assert (tmp_path / "confusion_5class_gp.png").stat().st_size > 1000
     assert (tmp_path / "reliability_3class.png").exists()

@@ -1,0 +1,136 @@
+"""In-hand views: every catalogue object picked up and turned in front of the wrist camera.
+
+GP-IPM inspects an uncertain object by holding it up to the wrist camera (thesis ch. 6). Seen
+that way an object is partly hidden by the jaws, seen from closer and from other angles than on
+the table, and cut out by :func:`~ipbench.perception.segmentation.segment_in_hand` rather than
+by the table-top segmentation; a model trained on table-top views alone labels such views of
+unseen instances right only about two times in three (``ipbench eval perception``). These views
+train the in-hand model.
+
+The capture rig is the benchmark environment itself (``ipbench/Sorting-v1`` reset with a
+one-object layout): the object stands alone at the centre of the spawn area in each resting
+pose the scenes use (upright; on its side when it can lie), the gripper picks it across its
+narrower side at its bounding-box grasp point (the rig knows where it put the object, as an
+operator would), presents it to the wrist camera and turns it by ``in_hand_turn_deg`` between
+``in_hand_views`` views. The wrist turns through about 180 deg, so each pose is captured from
+``in_hand_placements`` grasps, the object put down turned by 360 deg / ``in_hand_placements``
+between them, to show every side. Skills, camera, depth noise and in-hand segmentation (with
+the gripper pose from the joint positions) are those of an inspection during an episode. A
+capture stops early when the object slips out or the wrist cannot turn further.
+"""
+
+from __future__ import annotations
+
+import hashlib
+from typing import TYPE_CHECKING
+
+import gymnasium as gym
+import mujoco
+import numpy as np
+
+from ipbench.assets.objects import CATEGORIES, ObjectInstance, resting_poses
+from ipbench.envs.layout import Layout, PlacedObject
+from ipbench.envs.sorting import COMMANDS, workcell_places
+from ipbench.perception.cloud import PerceptionError, depth_to_points
+from ipbench.perception.features import fpfh
+from ipbench.perception.segmentation import segment_in_hand
+from ipbench.perception.viewset import ViewSet
+from ipbench.policies.kinematics import HandKinematics
+from ipbench.policies.scripted import ROUND, grasp_point, grasp_yaws, jaw_span
+
+if TYPE_CHECKING:
+    from ipbench.perception.dataset import DatasetConfig
+
+__all__ = ["HAND_POSES", "render_in_hand_views"]
+
+HAND_POSES: tuple[str, ...] = ("upright", "side")
+"""Resting poses an object is picked from (those the standard scenes use)."""
+_INSPECT_IN_HAND = COMMANDS.index("inspect_in_hand")
+
+
+def _seed(config: DatasetConfig, inst: ObjectInstance, pose: str) -> int:
+    text = f"{config.seed}/{inst.name}/{pose}"
+    return int.from_bytes(hashlib.sha256(text.encode()).digest()[:4], "little")
+
+
+def _layout(inst: ObjectInstance, pose_name: str, yaw: float) -> Layout | None:
+    """``inst`` alone at the spawn area's centre, resting in ``pose_name`` turned by ``yaw``
+    (rad); None when it cannot rest that way."""
+    pose = next((p for p in resting_poses(inst) if p.name == pose_name), None)
+    if pose is None:
+        return None
+    places = workcell_places()
+    x, y, _ = places.spawn_area.center
+    position = (float(x), float(y), float(places.table_height + pose.height))
+    quat = np.empty(4)
+    mujoco.mju_mulQuat(quat, [np.cos(yaw / 2), 0.0, 0.0, np.sin(yaw / 2)], pose.quat)
+    placed = PlacedObject(0, inst, pose, position, yaw, tuple(float(v) for v in quat))
+    return Layout("in_hand", 0, (placed,))
+
+
+def render_in_hand_views(inst: ObjectInstance, config: DatasetConfig) -> ViewSet:
+    """Up to ``config.in_hand_views`` in-hand views of ``inst`` per grasp: one grasp per pose
+    of :data:`HAND_POSES` and each of ``config.in_hand_placements`` yaws on the table (see the
+    module docstring)."""
+    descriptors: list[np.ndarray] = []
+    if config.in_hand_views < 1:
+        return ViewSet.from_views([], [], [], [], "in_hand")
+    kinematics = HandKinematics()
+    env = gym.make("ipbench/Sorting-v1", depth_noise=config.depth_noise)
+    try:
+        for pose_name in HAND_POSES:
+            for placement in range(config.in_hand_placements):
+                yaw = 2 * np.pi * placement / config.in_hand_placements
+                layout = _layout(inst, pose_name, yaw)
+                if layout is None:
+                    break
+                seed = _seed(config, inst, f"{pose_name}/{placement}")
+                _, info = env.reset(seed=seed, options={"layout": layout})
+                descriptors += _capture(env, info["objects"][0], inst, kinematics, config)
+    finally:
+        env.close()
+    n = len(descriptors)
+    label = CATEGORIES.index(inst.category)
+    return ViewSet.from_views(
+        descriptors, [label] * n, [inst.name] * n, [inst.known] * n, "in_hand"
+    )
+
+
+def _capture(env, obj: dict, inst: ObjectInstance, kinematics, config) -> list[np.ndarray]:
+    """Pick the object ``obj`` (its ``info["objects"]`` entry) and describe up to
+    ``config.in_hand_views`` in-hand views, turning it between them."""
+    quat = obj["pose"][3:]
+    yaw = grasp_yaws(quat, inst.size, round_=inst.category in ROUND)[0]
+    yaw = (yaw + np.pi) % (2 * np.pi) - np.pi  # the action space's range
+    action = {
+        "command": _INSPECT_IN_HAND,
+        "position": grasp_point(obj["center"], quat, inst.size).astype(np.float32),
+        "yaw": np.array([yaw], np.float32),
+        "bin": 0,
+        "opening": np.array([jaw_span(quat, inst.size, yaw)], np.float32),
+    }
+    views = []
+    for _ in range(config.in_hand_views):
+        obs, _, _, _, info = env.step(action)
+        if not all(s["success"] for s in info["skills"]):
+            break  # dropped, or the wrist cannot turn further
+        action["yaw"] = np.array([np.radians(config.in_hand_turn_deg)], np.float32)
+        view = _describe(obs, kinematics, config)
+        if view is not None and len(view):
+            views.append(view)
+    return views
+
+
+def _describe(obs: dict, kinematics: HandKinematics, config: DatasetConfig) -> np.ndarray | None:
+    """FPFH descriptors (n, 33) of the object in hand, None when it is not segmented."""
+    q = obs["qpos"]
+    try:
+        cloud = depth_to_points(obs["wrist_depth"], obs["wrist_K"], obs["wrist_pose"])
+        segment = segment_in_hand(
+            cloud, kinematics.tcp_pose(q), kinematics.jaw_opening(q), config=config.segmentation
+        )
+    except PerceptionError:
+        return None
+    if segment is None:
+        return None
+    return fpfh(segment.points, config.features, viewpoint=obs["wrist_pose"][:3, 3])
