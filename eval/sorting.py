@@ -2,11 +2,12 @@
 
 Policies x scenes x seeds, the same seeds for every policy (paired comparison). Steps:
 
-1. The perception models (GP; SVM when ``svm-ipm`` runs) are loaded from the cache or trained
+1. The perception models (GP; SVM when ``svm-ipm`` runs; for the policies that inspect in
+   hand, the same classifiers trained on in-hand views) are loaded from the cache or trained
    (:func:`ipbench.eval.perception.trained_models`).
 2. The confidence threshold of each interactive policy's classifier is chosen on validation
-   seeds disjoint from the test seeds (:func:`ipbench.policies.threshold.choose_threshold`,
-   first views of both standard scenes) and saved in the cache.
+   seeds disjoint from the test seeds (:func:`ipbench.policies.threshold.choose_threshold`
+   on every decision of random sorting through both standard scenes) and saved in the cache.
 3. Episodes run serially, in ``workers`` processes, or as Ray tasks; each record is appended to
    ``episodes.jsonl`` as soon as it finishes, so an interrupted run resumes where it stopped.
    ``run.json`` fingerprints the configuration; resuming into a folder made by another
@@ -39,9 +40,15 @@ from ipbench.envs.sorting import workcell_places
 from ipbench.eval.files import ensure_writable
 from ipbench.eval.perception import PerceptionEvalConfig, model_key, trained_models
 from ipbench.eval.sorting_report import ThresholdSweep, load_episodes, write_report
-from ipbench.policies import FUSIONS, POLICIES, NothingToSort, PolicyModels, make_policy
+from ipbench.policies import (
+    FUSIONS,
+    INTERACTIVE,
+    POLICIES,
+    NothingToSort,
+    PolicyModels,
+    make_policy,
+)
 from ipbench.policies.oracle import true_category
-from ipbench.policies.perceiver import Perceiver
 from ipbench.policies.threshold import ThresholdChoice, choose_threshold
 
 __all__ = [
@@ -58,7 +65,8 @@ __all__ = [
 BACKENDS: tuple[str, ...] = ("process", "ray")
 EPISODE_VERSION = 2
 """Version of the episode record; part of the run fingerprint."""
-_CLASSIFIER = {"gp-ipm": "gp", "gp-ipm-area": "gp", "svm-ipm": "svm"}
+_VALIDATION_PROTOCOL = 2
+"""Version of how threshold evidence is gathered (2: every decision of validation episodes)."""
 
 
 class SortingEvalError(ValueError):
@@ -73,9 +81,9 @@ class SortingEvalConfig:
     ----------
     scenes, policies : names (see ``SCENES`` and :data:`~ipbench.policies.POLICIES`).
     seeds : episode seeds (the same for every policy and scene).
-    validation_seeds : seeds whose first views choose the thresholds; disjoint from ``seeds``.
-    target_precision : the threshold is the lowest confidence whose first-view labels are at
-        least this often right on the validation views.
+    validation_seeds : seeds whose episodes choose the thresholds; disjoint from ``seeds``.
+    target_precision : the threshold is the lowest confidence whose labels are at least this
+        often right over the decisions of the validation episodes.
     n_views, fusion : inspection views fused per object, and how.
     steps_per_object : the episode's step limit is this x objects + 10.
     workers : parallel episodes (processes, or Ray tasks).
@@ -152,29 +160,45 @@ class Task:
 
 
 # -- models and thresholds ---------------------------------------------------------------------
-def _validation_evidence(model, config: SortingEvalConfig) -> tuple[np.ndarray, np.ndarray]:
-    """First-view confidence and correctness of every segment of the validation episodes."""
+def _validation_evidence(
+    model, config: SortingEvalConfig, progress: bool = False
+) -> tuple[np.ndarray, np.ndarray]:
+    """Confidence and correctness of every decision of random sorting (which uses no
+    threshold) with ``model`` through the validation episodes of both standard scenes.
+
+    Every view a sorter decides on counts, not only an episode's first one: after removals the
+    table holds disturbed, toppled leftovers, where labels of the same confidence are right
+    less often, so thresholds chosen on first views alone let many wrong later labels
+    through."""
+    area = tuple(float(v) for v in workcell_places().inspection_area.center)
     seg, feat = config.perception.dataset.segmentation, config.perception.dataset.features
-    perceiver = Perceiver(model, workcell_places().inspection_area.center, seg, feat)
+    under_test = PolicyModels(
+        gp=model, inspection_area=area, thresholds={}, segmentation=seg, features=feat
+    )
+    tasks = [Task(scene, "random", seed) for scene in SCENES for seed in config.validation_seeds]
     conf, correct = [], []
-    for scene in SCENES:
-        env = gym.make(
-            "ipbench/Sorting-v1", scene=scene, depth_noise=config.perception.dataset.depth_noise
-        )
-        for seed in config.validation_seeds:
-            obs, info = env.reset(seed=seed)
-            for d in perceiver.scene(obs):
-                truth = true_category(d.segment.pixels, info)
-                if truth is not None:
-                    conf.append(d.confidence)
-                    correct.append(d.label == truth)
-        env.close()
+    records = _executor(config)(tasks, under_test, config)
+    bar = tqdm(records, total=len(tasks), desc="validation episodes", disable=not progress)
+    for record in bar:
+        for d in record["decisions"]:
+            if d["true_category"] is not None:
+                conf.append(d["first_confidence"])
+                correct.append(d["first_label"] == d["true_category"])
     return np.array(conf), np.array(correct, bool)
 
 
-def _threshold(cache: Path, model, classifier: str, config: SortingEvalConfig) -> ThresholdChoice:
+def _threshold(
+    cache: Path, model, classifier: str, config: SortingEvalConfig, progress: bool = False
+) -> ThresholdChoice:
     text = json.dumps(
-        [model.key, list(config.validation_seeds), config.target_precision], sort_keys=True
+        [
+            model.key,
+            list(config.validation_seeds),
+            config.target_precision,
+            config.steps_per_object,
+            _VALIDATION_PROTOCOL,
+        ],
+        sort_keys=True,
     )
     path = (
         Path(cache)
@@ -193,7 +217,7 @@ def _threshold(cache: Path, model, classifier: str, config: SortingEvalConfig) -
             )
         except (ValueError, KeyError, TypeError) as err:
             print(f"ipbench: threshold file {path} is corrupt ({err}); choosing again")
-    conf, correct = _validation_evidence(model, config)
+    conf, correct = _validation_evidence(model, config, progress)
     choice = choose_threshold(conf, correct, config.target_precision)
     record = {
         k: (v.tolist() if isinstance(v, np.ndarray) else v) for k, v in asdict(choice).items()
@@ -205,19 +229,32 @@ def _threshold(cache: Path, model, classifier: str, config: SortingEvalConfig) -
 
 
 def prepare_models(
-    cache: Path, config: SortingEvalConfig
+    cache: Path, config: SortingEvalConfig, progress: bool = False
 ) -> tuple[PolicyModels, dict[str, ThresholdChoice]]:
-    """Trained models and validated thresholds for ``config.policies`` (cached in ``cache``)."""
+    """Trained models and validated thresholds for ``config.policies`` (cached in ``cache``;
+    ``progress``: a bar over the validation episodes when a threshold must be chosen)."""
     cache = Path(cache)
     cache.mkdir(parents=True, exist_ok=True)
     with threadpool_limits(1):
         wanted = ("gp", "svm") if "svm-ipm" in config.policies else ("gp",)
         models = trained_models(cache, config.perception, CATEGORIES, wanted)
-        needed = {_CLASSIFIER[p] for p in config.policies if p in _CLASSIFIER}
-        choices = {c: _threshold(cache, models[c], c, config) for c in sorted(needed)}
+        in_hand = tuple(
+            sorted(
+                {
+                    c
+                    for p, (c, mode) in INTERACTIVE.items()
+                    if p in config.policies and mode == "hand"
+                }
+            )
+        )
+        hand = trained_models(cache, config.perception, CATEGORIES, in_hand, "in_hand")
+        needed = {INTERACTIVE[p][0] for p in config.policies if p in INTERACTIVE}
+        choices = {c: _threshold(cache, models[c], c, config, progress) for c in sorted(needed)}
     policy_models = PolicyModels(
         gp=models["gp"],
         svm=models.get("svm"),
+        gp_hand=hand.get("gp"),
+        svm_hand=hand.get("svm"),
         inspection_area=tuple(float(v) for v in workcell_places().inspection_area.center),
         thresholds={c: ch.threshold for c, ch in choices.items()},
         segmentation=config.perception.dataset.segmentation,
@@ -414,20 +451,19 @@ def run_sorting_eval(
 ) -> dict:
     """Run (or resume) the evaluation into ``out``; returns the summary."""
     out = Path(out)
-    models, choices = prepare_models(cache, config)
-    fingerprint = config.fingerprint(
-        json.dumps(
-            [models.gp.key, models.svm.key if models.svm else None, models.thresholds],
-            sort_keys=True,
-        )
-    )
+    models, choices = prepare_models(cache, config, progress=progress)
+    keys = {
+        name: None if getattr(models, name) is None else getattr(models, name).key
+        for name in ("gp", "svm", "gp_hand", "svm_hand")
+    }
+    fingerprint = config.fingerprint(json.dumps([keys, models.thresholds], sort_keys=True))
     _check_out(out, fingerprint)
     (out / "run.json").write_text(
         json.dumps(
             {
                 "fingerprint": fingerprint,
                 "thresholds": models.thresholds,
-                "model_keys": {"gp": models.gp.key, "svm": models.svm.key if models.svm else None},
+                "model_keys": keys,
                 "perception_key": model_key(config.perception, CATEGORIES),
                 "config": asdict(config),
             },
@@ -484,7 +520,7 @@ def run_sorting_eval(
             accuracy=np.nan_to_num(c.precision, nan=1.0),
             inspected_fraction=c.inspected,
             chosen=c.threshold,
-            source=f"first-view segments of {c.n} objects in validation seeds "
+            source=f"{c.n} decisions of random sorting in validation seeds "
             f"{min(config.validation_seeds)}-{max(config.validation_seeds)} (both scenes): "
             "accuracy of the labels at or above the threshold, and the fraction below it "
             f"(inspected); the chosen threshold is the lowest reaching {c.target_precision:.0%}",

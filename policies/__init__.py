@@ -20,6 +20,7 @@ from ipbench.policies.random_sorting import RandomSorter
 
 __all__ = [
     "FUSIONS",
+    "INTERACTIVE",
     "POLICIES",
     "Decision",
     "Detection",
@@ -32,13 +33,22 @@ __all__ = [
 
 POLICIES: tuple[str, ...] = ("random", "gp-ipm", "gp-ipm-area", "svm-ipm", "oracle")
 """Policy names of the benchmark."""
+INTERACTIVE: dict[str, tuple[str, str]] = {
+    "gp-ipm": ("gp", "hand"),
+    "gp-ipm-area": ("gp", "area"),
+    "svm-ipm": ("svm", "hand"),
+}
+"""The interactive policies: name -> (classifier, inspection mode, see
+:data:`~ipbench.policies.interactive.INSPECTIONS`)."""
 
 
 @dataclass(frozen=True)
 class PolicyModels:
     """What the policies perceive with.
 
-    ``gp``/``svm``: trained models (``svm`` only needed by ``svm-ipm``); ``thresholds``: the
+    ``gp``/``svm``: trained models for views of the table (``svm`` only needed by
+    ``svm-ipm``); ``gp_hand``/``svm_hand``: the same classifiers trained on in-hand views, for
+    in-hand inspections (None: the table model classifies those too); ``thresholds``: the
     validated confidence threshold per classifier (``{"gp": 0.7, "svm": 0.8}``);
     ``inspection_area``: (3,) centre of the inspection area (world, m).
     """
@@ -47,6 +57,8 @@ class PolicyModels:
     inspection_area: tuple[float, float, float]
     thresholds: dict[str, float]
     svm: PerceptionModel | None = None
+    gp_hand: PerceptionModel | None = None
+    svm_hand: PerceptionModel | None = None
     segmentation: SegmentationConfig = DEFAULT_SEGMENTATION
     features: FeatureConfig = DEFAULT_FEATURES
 
@@ -59,7 +71,13 @@ def make_policy(
     def perceiver(model: PerceptionModel | None, what: str) -> Perceiver:
         if model is None:
             raise PolicyError(f"policy {name!r} needs a trained {what} model (PolicyModels.{what})")
-        return Perceiver(model, models.inspection_area, models.segmentation, models.features)
+        return Perceiver(
+            model,
+            models.inspection_area,
+            models.segmentation,
+            models.features,
+            hand_model=getattr(models, f"{what}_hand"),
+        )
 
     def interactive(classifier: str, inspection: str) -> InteractiveSorter:
         if classifier not in models.thresholds:
@@ -76,10 +94,6 @@ def make_policy(
         return RandomSorter(perceiver(models.gp, "gp"), name)
     if name == "oracle":
         return OracleSorter(perceiver(models.gp, "gp"), name)
-    if name == "gp-ipm":
-        return interactive("gp", "hand")
-    if name == "gp-ipm-area":
-        return interactive("gp", "area")
-    if name == "svm-ipm":
-        return interactive("svm", "hand")
+    if name in INTERACTIVE:
+        return interactive(*INTERACTIVE[name])
     raise PolicyError(f"unknown policy {name!r}; valid: {', '.join(POLICIES)}")

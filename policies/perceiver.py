@@ -69,9 +69,12 @@ class Perceiver:
 
     Parameters
     ----------
-    model : the trained codebook + classifier.
-    segmentation, features : the settings the model's training views were made with.
+    model : the trained codebook + classifier for views of the table (and the inspection
+        area).
     inspection_area : (3,) centre of the inspection area (world, m).
+    segmentation, features : the settings the model's training views were made with.
+    hand_model : the model for an object held up to the camera (trained on in-hand views);
+        None classifies those with ``model``.
     """
 
     def __init__(
@@ -80,8 +83,15 @@ class Perceiver:
         inspection_area: np.ndarray,
         segmentation: SegmentationConfig = DEFAULT_SEGMENTATION,
         features: FeatureConfig = DEFAULT_FEATURES,
+        hand_model: PerceptionModel | None = None,
     ) -> None:
+        if hand_model is not None and hand_model.classes != model.classes:
+            raise PerceptionError(
+                f"hand_model classes {hand_model.classes} differ from model classes "
+                f"{model.classes}; train both for the same classes"
+            )
         self.model = model
+        self.hand_model = hand_model or model
         self.segmentation = segmentation
         self.features = features
         self.inspection_area = np.asarray(inspection_area, dtype=float)
@@ -96,9 +106,15 @@ class Perceiver:
             observation["wrist_depth"], observation["wrist_K"], observation["wrist_pose"]
         )
 
-    def _classify(self, segments: list[Segment], eye: np.ndarray, inspected: bool):
+    def _classify(
+        self,
+        segments: list[Segment],
+        eye: np.ndarray,
+        inspected: bool,
+        model: PerceptionModel | None = None,
+    ):
         views = [fpfh(s.points, self.features, viewpoint=eye) for s in segments]
-        probs = self.model.probabilities(views)
+        probs = (model or self.model).probabilities(views)
         return [
             Detection(s, p, self.classes, eye, inspected)
             for s, p in zip(segments, probs, strict=True)
@@ -125,7 +141,8 @@ class Perceiver:
         return self._classify([segment], observation["wrist_pose"][:3, 3], inspected=True)[0]
 
     def in_hand(self, observation: dict) -> Detection | None:
-        """The object held by the gripper (None when the hand is empty or out of view)."""
+        """The object held by the gripper, classified by :attr:`hand_model` (None when the
+        hand is empty or out of view)."""
         q = observation["qpos"]
         segment = segment_in_hand(
             self._cloud(observation),
@@ -135,4 +152,5 @@ class Perceiver:
         )
         if segment is None:
             return None
-        return self._classify([segment], observation["wrist_pose"][:3, 3], inspected=True)[0]
+        eye = observation["wrist_pose"][:3, 3]
+        return self._classify([segment], eye, inspected=True, model=self.hand_model)[0]

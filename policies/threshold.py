@@ -1,11 +1,12 @@
 """Choosing GP-IPM's confidence threshold on validation data.
 
-The evidence: the first-view segments of validation episodes (seeds disjoint from the test
+The evidence: the decisions taken through validation episodes (seeds disjoint from the test
 seeds), each with its predicted label's confidence and whether the label was right (ground
-truth is allowed here: this is training, as labelling the training views is). The threshold is
-the lowest confidence at which the objects sorted without inspection are still right at least
-``target_precision`` of the time — everything less sure is inspected. It never looks at the
-random baseline, which does not use a threshold.
+truth is allowed here: this is training, as labelling the training views is). The evaluation
+gathers them from random sorting, which uses no threshold, so the evidence does not depend on
+the threshold it chooses. The threshold is the lowest confidence at which the objects sorted
+without inspection are still right at least ``target_precision`` of the time — everything
+less sure is inspected. No policy's score enters: only labels, confidences and the truth.
 """
 
 from __future__ import annotations
@@ -23,8 +24,8 @@ __all__ = ["ThresholdChoice", "choose_threshold"]
 class ThresholdChoice:
     """The chosen ``threshold`` and the sweep behind it.
 
-    ``thresholds`` (k,), ``precision`` (k,): accuracy of the first-view labels at or above
-    each threshold (nan when none), ``inspected`` (k,): fraction of objects below it.
+    ``thresholds`` (k,), ``precision`` (k,): accuracy of the labels at or above each
+    threshold (nan when none), ``inspected`` (k,): fraction of objects below it.
     """
 
     threshold: float
@@ -38,7 +39,7 @@ class ThresholdChoice:
 def choose_threshold(
     confidence: np.ndarray, correct: np.ndarray, target_precision: float = 0.95
 ) -> ThresholdChoice:
-    """The lowest threshold whose accepted first-view labels reach ``target_precision``.
+    """The lowest threshold whose accepted labels reach ``target_precision``.
 
     ``confidence`` (n,) in [0, 1], ``correct`` (n,) bool. When no threshold reaches the target,
     1.0 (inspect everything).

@@ -216,3 +216,51 @@ def test_an_object_is_given_up_after_repeated_failed_grasps() -> None:
     assert len({round(y, 3) for y in yaws[:2]}) == 2  # the retry turned the jaws
     with pytest.raises(NothingToSort, match="failed grasps"):
         policy.act({"qpos": None})
+
+
+class _FixedClassifier:
+    """Always says class ``k`` with probability 0.8."""
+
+    def __init__(self, k: int) -> None:
+        self.k = k
+
+    def predict_proba(self, x: np.ndarray) -> np.ndarray:
+        p = np.full((len(x), len(CLASSES)), 0.05)
+        p[:, self.k] = 0.8
+        return p
+
+
+def test_in_hand_views_are_classified_by_the_in_hand_model(monkeypatch) -> None:
+    from types import SimpleNamespace
+
+    import ipbench.policies.perceiver as perceiver_module
+    from ipbench.envs.sorting import ROBOT_JOINTS
+    from ipbench.perception.cloud import PerceptionError
+    from ipbench.perception.features import Codebook
+    from ipbench.perception.model import PerceptionModel
+    from ipbench.policies import PolicyModels
+    from ipbench.policies.perceiver import Perceiver
+
+    codebook = Codebook(np.random.default_rng(0).random((4, 33)))
+    table = PerceptionModel(CLASSES, codebook, _FixedClassifier(0), "table")
+    hand = PerceptionModel(CLASSES, codebook, _FixedClassifier(3), "hand")
+    # a cube of points stands in for the segmentation (tested in test_segmentation)
+    grid = np.stack(np.meshgrid(*[np.linspace(0, 0.06, 7)] * 3), -1).reshape(-1, 3)
+    seg = Segment(grid, np.arange(len(grid)), grid.mean(0), grid.mean(0), np.eye(3),
+                  np.full(3, 0.06), 0.06, 0.06)  # fmt: skip
+    monkeypatch.setattr(perceiver_module, "depth_to_points", lambda *a: None)
+    monkeypatch.setattr(perceiver_module, "segment_in_hand", lambda *a, **k: seg)
+    monkeypatch.setattr(
+        perceiver_module, "segment_scene", lambda *a, **k: SimpleNamespace(segments=(seg,))
+    )
+    obs = {"wrist_depth": None, "wrist_K": None, "wrist_pose": np.eye(4)}
+    obs["qpos"] = np.zeros(len(ROBOT_JOINTS))
+    models = PolicyModels(gp=table, gp_hand=hand, inspection_area=(0, 0, 0), thresholds={"gp": 0.5})
+    perceiver = make_policy("gp-ipm", models).perceiver
+    assert perceiver.scene(obs)[0].label == "juice_bottle"  # the table model
+    assert perceiver.in_hand(obs).label == "mug"  # the in-hand model
+    without = Perceiver(table, np.zeros(3))
+    assert without.in_hand(obs).label == "juice_bottle"  # no in-hand model: the table's
+    other = PerceptionModel(CLASSES[:3], codebook, _FixedClassifier(0), "three")
+    with pytest.raises(PerceptionError, match="train both for the same classes"):
+        Perceiver(table, np.zeros(3), hand_model=other)

@@ -61,7 +61,9 @@ def models() -> PolicyModels:
 @pytest.fixture
 def prepared(models, monkeypatch):
     choice = choose_threshold(np.array([0.4, 0.6, 0.9]), np.array([False, True, True]), 0.95)
-    monkeypatch.setattr(sorting, "prepare_models", lambda cache, config: (models, {"gp": choice}))
+    monkeypatch.setattr(
+        sorting, "prepare_models", lambda cache, config, **kw: (models, {"gp": choice})
+    )
     return models
 
 
@@ -176,3 +178,29 @@ def test_an_unwritable_output_folder_is_reported(tmp_path, prepared) -> None:
     blocker.write_text("")
     with pytest.raises(SortingEvalError, match="cannot write to the output folder"):
         run_sorting_eval(blocker / "out", tmp_path / "cache", FAST, progress=False)
+
+
+def test_threshold_evidence_is_every_decision_of_random_validation_episodes(models, monkeypatch):
+    from ipbench.envs.layout import SCENES
+
+    monkeypatch.setattr(sorting, "SCENES", {"uncluttered": SCENES["uncluttered"]})
+    records = []
+    real = sorting._executor
+
+    def spy(config):
+        def run(tasks, models_, config_):
+            for record in real(config)(tasks, models_, config_):
+                records.append(record)
+                yield record
+
+        return run
+
+    monkeypatch.setattr(sorting, "_executor", spy)
+    conf, correct = sorting._validation_evidence(models.gp, replace(FAST, validation_seeds=(1000,)))
+    assert [(r["scene"], r["policy"], r["seed"]) for r in records] == [
+        ("uncluttered", "random", 1000)
+    ]
+    decided = [d for d in records[0]["decisions"] if d["true_category"] is not None]
+    assert len(decided) > 1 and max(d["step"] for d in decided) > 1  # not just the first view
+    np.testing.assert_allclose(conf, [d["first_confidence"] for d in decided])
+    assert list(correct) == [d["first_label"] == d["true_category"] for d in decided]
