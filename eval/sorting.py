@@ -187,22 +187,45 @@ def _validation_evidence(
     return np.array(conf), np.array(correct, bool)
 
 
+def _cache_path(cache: Path, kind: str, classifier: str, parts: list) -> Path:
+    digest = hashlib.sha256(json.dumps(parts, sort_keys=True).encode()).hexdigest()[:16]
+    return Path(cache) / f"{kind}-{classifier}-{digest}.json"
+
+
+def _write_json(path: Path, record: dict) -> None:
+    tmp = path.with_suffix(".tmp")
+    tmp.write_text(json.dumps(record))
+    tmp.replace(path)
+
+
+def _evidence(
+    cache: Path, model, classifier: str, config: SortingEvalConfig, progress: bool
+) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`_validation_evidence`, cached: it does not depend on the target precision, so a
+    sweep over targets runs the validation episodes once."""
+    parts = [model.key, list(config.validation_seeds), config.steps_per_object]
+    path = _cache_path(cache, "evidence", classifier, [*parts, _VALIDATION_PROTOCOL])
+    if path.exists():
+        try:
+            d = json.loads(path.read_text())
+            conf, correct = np.array(d["confidence"], float), np.array(d["correct"], bool)
+            if conf.shape == correct.shape and conf.ndim == 1:
+                return conf, correct
+            print(f"ipbench: evidence file {path} is malformed; gathering it again")
+        except (ValueError, KeyError, TypeError) as err:
+            print(f"ipbench: evidence file {path} is corrupt ({err}); gathering it again")
+    conf, correct = _validation_evidence(model, config, progress)
+    _write_json(path, {"confidence": conf.tolist(), "correct": correct.tolist()})
+    return conf, correct
+
+
 def _threshold(
     cache: Path, model, classifier: str, config: SortingEvalConfig, progress: bool = False
 ) -> ThresholdChoice:
-    text = json.dumps(
-        [
-            model.key,
-            list(config.validation_seeds),
-            config.target_precision,
-            config.steps_per_object,
-            _VALIDATION_PROTOCOL,
-        ],
-        sort_keys=True,
-    )
-    path = (
-        Path(cache)
-        / f"threshold-{classifier}-{hashlib.sha256(text.encode()).hexdigest()[:16]}.json"
+    """The threshold chosen for ``model`` on the validation episodes, saved in ``cache``."""
+    parts = [model.key, list(config.validation_seeds), config.steps_per_object]
+    path = _cache_path(
+        cache, "threshold", classifier, [*parts, config.target_precision, _VALIDATION_PROTOCOL]
     )
     if path.exists():
         try:
@@ -217,14 +240,12 @@ def _threshold(
             )
         except (ValueError, KeyError, TypeError) as err:
             print(f"ipbench: threshold file {path} is corrupt ({err}); choosing again")
-    conf, correct = _validation_evidence(model, config, progress)
+    conf, correct = _evidence(cache, model, classifier, config, progress)
     choice = choose_threshold(conf, correct, config.target_precision)
-    record = {
-        k: (v.tolist() if isinstance(v, np.ndarray) else v) for k, v in asdict(choice).items()
-    }
-    tmp = path.with_suffix(".tmp")
-    tmp.write_text(json.dumps(record))
-    tmp.replace(path)
+    _write_json(
+        path,
+        {k: (v.tolist() if isinstance(v, np.ndarray) else v) for k, v in asdict(choice).items()},
+    )
     return choice
 
 

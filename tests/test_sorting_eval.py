@@ -204,3 +204,24 @@ def test_threshold_evidence_is_every_decision_of_random_validation_episodes(mode
     assert len(decided) > 1 and max(d["step"] for d in decided) > 1  # not just the first view
     np.testing.assert_allclose(conf, [d["first_confidence"] for d in decided])
     assert list(correct) == [d["first_label"] == d["true_category"] for d in decided]
+
+
+def test_validation_evidence_is_cached_across_targets_and_rebuilt_when_corrupt(
+    models, tmp_path, monkeypatch, capsys
+):
+    calls = []
+
+    def evidence(model, config, progress=False):
+        calls.append(config.target_precision)
+        return np.array([0.3, 0.5, 0.9, 0.95]), np.array([False, True, True, True])
+
+    monkeypatch.setattr(sorting, "_validation_evidence", evidence)
+    strict = sorting._threshold(tmp_path, models.gp, "gp", replace(FAST, target_precision=0.95))
+    loose = sorting._threshold(tmp_path, models.gp, "gp", replace(FAST, target_precision=0.6))
+    assert (strict.threshold, loose.threshold) == (0.31, 0.0) and calls == [0.95]
+    again = sorting._threshold(tmp_path, models.gp, "gp", replace(FAST, target_precision=0.95))
+    assert again.threshold == 0.31 and calls == [0.95]  # the saved threshold
+    (path,) = tmp_path.glob("evidence-gp-*.json")
+    path.write_text("{not json")
+    sorting._threshold(tmp_path, models.gp, "gp", replace(FAST, target_precision=0.9))
+    assert "corrupt" in capsys.readouterr().out and calls == [0.95, 0.9]
