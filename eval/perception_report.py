@@ -167,7 +167,8 @@ def write_report(
         if hand:
             lines += [
                 "",
-                f"In hand: {info.get('in_hand_views', 0)} views of the unknown instances held up "
+                f"In hand: {next(iter(hand.values()))['in_hand']['n']} views of the unknown "
+                "instances held up "
                 "to the wrist camera, classified by the in-hand model (trained on "
                 f"{info.get('in_hand_train_views', 0)} in-hand views of the known instances) "
                 "and by the table-top model above:",
