@@ -187,6 +187,11 @@ def _validation_evidence(
     return np.array(conf), np.array(correct, bool)
 
 
+def _validation_key(model, config: SortingEvalConfig) -> list:
+    """What the validation evidence depends on."""
+    return [model.key, list(config.validation_seeds), config.steps_per_object, _VALIDATION_PROTOCOL]
+
+
 def _cache_path(cache: Path, kind: str, classifier: str, parts: list) -> Path:
     digest = hashlib.sha256(json.dumps(parts, sort_keys=True).encode()).hexdigest()[:16]
     return Path(cache) / f"{kind}-{classifier}-{digest}.json"
@@ -203,8 +208,7 @@ def _evidence(
 ) -> tuple[np.ndarray, np.ndarray]:
     """:func:`_validation_evidence`, cached: it does not depend on the target precision, so a
     sweep over targets runs the validation episodes once."""
-    parts = [model.key, list(config.validation_seeds), config.steps_per_object]
-    path = _cache_path(cache, "evidence", classifier, [*parts, _VALIDATION_PROTOCOL])
+    path = _cache_path(cache, "evidence", classifier, _validation_key(model, config))
     if path.exists():
         try:
             d = json.loads(path.read_text())
@@ -223,10 +227,8 @@ def _threshold(
     cache: Path, model, classifier: str, config: SortingEvalConfig, progress: bool = False
 ) -> ThresholdChoice:
     """The threshold chosen for ``model`` on the validation episodes, saved in ``cache``."""
-    parts = [model.key, list(config.validation_seeds), config.steps_per_object]
-    path = _cache_path(
-        cache, "threshold", classifier, [*parts, config.target_precision, _VALIDATION_PROTOCOL]
-    )
+    key = [*_validation_key(model, config), config.target_precision]
+    path = _cache_path(cache, "threshold", classifier, key)
     if path.exists():
         try:
             d = json.loads(path.read_text())
