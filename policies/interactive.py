@@ -4,7 +4,8 @@ Each step: perceive the table; take the most confident object; if its confidence
 threshold, put it into the bin of its predicted class; otherwise *inspect* it — in the hand
 (presented to the wrist camera) or in the inspection area — turning it by ``turn_deg`` between
 views until ``n_views`` views are classified, fuse them (:mod:`ipbench.policies.fusion`) and
-put it into the bin of the fused class. The scene is perceived again after every removal.
+put it into the bin of the fused class (in-hand views are classified by the perceiver's
+in-hand model). The scene is perceived again after every removal.
 With an SVM model instead of the GP this is SVM-IPM; the loop does not change.
 """
 
