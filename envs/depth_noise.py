@@ -20,6 +20,20 @@ angle between the surface normal and the camera ray, estimated from the depth im
    each pixel takes the depth at a rounded Gaussian offset (nearest neighbour), which jags
    depth edges and hole borders.
 
+Structured-light effects (:mod:`ipbench.envs.structured_light`, sources there), all off in
+``DepthNoiseConfig()`` (``Sorting-v0``/``v1`` keep their exact output) and on in
+:data:`STRUCTURED_LIGHT`: the projector shadow (needs a depth image rendered from the projector,
+:attr:`DepthNoiseModel.projector_offset`; shadowed pixels are missing input); 9x9 block matching
+in disparity with window-correlated Gaussian disparity noise calibrated to Nguyen's sigma_z,
+which *replaces* 1. and the edge drop-out of 3. (quantisation 2., grazing, specular and range
+drop-outs and lateral noise 4. stay, in that order); and a per-unit depth scale / offset and
+depth-to-RGB shift (:meth:`DepthNoiseModel.draw_unit`, applied last). Ranges of the preset: scale
++-1 %, offset +-1 cm (at most 2 cm at 1 m, 4.5 cm at 3.5 m: Boehm, "Accuracy investigation for
+structured-light based consumer 3D sensors", 18 PrimeSense/Xtion units, repeatability a few mm,
+absolute accuracy off by up to a few cm), shift +-2 px per axis (estimate: the ROS openni
+drivers correct a nominal (5, 4) px IR-to-depth offset of the 9x7 correlation window and expose
+it per unit "to allow tweaking"; the per-unit residual is not published there).
+
 The angle terms use ``theta <= 89 deg`` (axial) and ``<= 80 deg`` (lateral). Gaussian deviates
 come from inverse-CDF tables indexed by random integers (65 536 quantiles for the axial noise,
 256 for the lateral offsets), several times faster than ``rng.standard_normal``; probabilities
@@ -28,6 +42,7 @@ have a resolution of 1/256. A 640x480 frame takes ~4 ms on one core.
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 import math
 import statistics
@@ -37,14 +52,28 @@ from types import SimpleNamespace
 import cv2
 import numpy as np
 
+from .structured_light import (
+    BlockMatcher,
+    UnitError,
+    apply_unit,
+    disparity,
+    disparity_noise,
+    draw_unit_error,
+    projector_lit,
+)
+
 __all__ = [
     "DEFAULT_CONFIG",
+    "SENSOR_EFFECTS",
+    "STRUCTURED_LIGHT",
     "DepthNoiseConfig",
     "DepthNoiseModel",
     "SensorError",
+    "UnitError",
     "axial_sigma",
     "cos_incidence",
     "lateral_sigma_px",
+    "without_effect",
 ]
 
 _MAX_THETA, _MAX_THETA_LATERAL = math.radians(89.0), math.radians(80.0)  # angle-term caps
@@ -76,11 +105,33 @@ class DepthNoiseConfig:
     specular_facing_deg: float = 25.0  # deg; specular pixels missing below this incidence
     specular_dropout: float = 0.3  # fraction of the other specular pixels lost in blobs
     specular_blob_px: int = 8  # px; size of the specular blobs
+    # Structured-light effects (module structured_light), off by default:
+    projector_shadow: bool = False  # surfaces the projector cannot light get no depth
+    projector_side: int = 1  # +1: projector at +x (OpenCV frame) of the IR camera; -1: at -x
+    shadow_tolerance: float = 0.01  # relative depth margin of the shadow test
+    block_matching: bool = False  # replaces axial noise and edge drop-out (module docstring)
+    bm_window_px: int = 9  # px; correlation window (odd)
+    bm_pattern_cell_px: int = 3  # px; one projector dot per cell of this size
+    bm_pattern_seed: int = 0  # the dot pattern (a device constant)
+    bm_min_dots: int = 4  # fewer seen dots in the window: lost
+    bm_match_fraction: float = 2.0 / 3.0  # winner's share of the window's weighted dots
+    bm_surface_tol_px: float = 1.0  # px; disparity gap that separates two surfaces
+    unit_scale_max: float = 0.0  # per-unit depth scale error drawn in [-x, x] (fraction)
+    unit_offset_max_m: float = 0.0  # m; per-unit depth offset drawn in [-x, x]
+    unit_shift_max_px: int = 0  # px; per-unit depth-to-RGB shift drawn in [-x, x] per axis
 
     def __post_init__(self) -> None:
         nonneg = "axial_a axial_b axial_angle_k lateral_sigma_px lateral_angle_k_px"
         rules = [(nonneg + " disparity_step_px min_range_m edge_threshold_m", 0, math.inf)]
         rules += [("edge_dropout specular_dropout", 0, 1), ("specular_blob_px", 1, 1e9)]
+        rules += [("shadow_tolerance unit_scale_max", 0, 0.5), ("bm_match_fraction", 0.5, 1)]
+        rules += [("bm_pattern_cell_px bm_min_dots", 1, 1e9), ("bm_window_px", 3, 99)]
+        rules += [("unit_offset_max_m bm_surface_tol_px unit_shift_max_px", 0, 1e9)]
+        if self.projector_side not in (-1, 1) or self.bm_window_px % 2 == 0:
+            raise SensorError(
+                f"DepthNoiseConfig.projector_side={self.projector_side!r} (valid: -1, 1) or "
+                f"bm_window_px={self.bm_window_px!r} (valid: odd, 3-99)"
+            )
         rules += [("grazing_angle_deg specular_facing_deg", 0, 90), ("baseline_m", 1e-9, 1e9)]
         rules += [("max_range_m", self.min_range_m + 1e-9, math.inf)]
         for names, lo, hi in rules:
@@ -91,6 +142,38 @@ class DepthNoiseConfig:
 
 
 DEFAULT_CONFIG = DepthNoiseConfig()
+"""The Xtion model of ``Sorting-v0``/``v1`` (no structured-light effects); never changes."""
+
+STRUCTURED_LIGHT = DepthNoiseConfig(
+    projector_shadow=True,
+    block_matching=True,
+    unit_scale_max=0.01,
+    unit_offset_max_m=0.01,
+    unit_shift_max_px=2,
+)
+"""Every effect on (``Sorting-v2``): the module docstring's numbers and sources."""
+
+_EFFECT_OFF: dict[str, dict[str, object]] = {
+    "projector_shadow": {"projector_shadow": False},
+    "block_matching": {"block_matching": False},
+    "axial_noise": {"axial_a": 0.0, "axial_b": 0.0, "axial_angle_k": 0.0},
+    "quantisation": {"disparity_step_px": 0.0},
+    "lateral_noise": {"lateral_sigma_px": 0.0, "lateral_angle_k_px": 0.0},
+    "grazing": {"grazing_angle_deg": 90.0},
+    "specular": {"specular_facing_deg": 0.0, "specular_dropout": 0.0},
+    "unit_depth_error": {"unit_scale_max": 0.0, "unit_offset_max_m": 0.0},
+    "registration": {"unit_shift_max_px": 0},
+}
+SENSOR_EFFECTS: tuple[str, ...] = tuple(_EFFECT_OFF)
+"""The switchable effects of :data:`STRUCTURED_LIGHT` (``axial_noise``: the disparity noise
+with block matching on), for :func:`without_effect`."""
+
+
+def without_effect(config: DepthNoiseConfig, effect: str) -> DepthNoiseConfig:
+    """``config`` with ``effect`` (one of :data:`SENSOR_EFFECTS`) switched off."""
+    if effect not in _EFFECT_OFF:
+        raise SensorError(f"unknown sensor effect {effect!r}; valid: {list(SENSOR_EFFECTS)}")
+    return dataclasses.replace(config, **_EFFECT_OFF[effect])
 
 
 def _angle_ratio(theta, cap: float = _MAX_THETA) -> np.ndarray:
@@ -185,7 +268,8 @@ def _workspace(h: int, w: int) -> SimpleNamespace:
     kinds = dict.fromkeys("cos f1 f2 f3 noisy".split(), np.float32) | {"level": np.uint8}
     kinds |= dict.fromkeys("drop edge mask spec spec2".split(), bool) | {"key": np.uint32}
     ws = {k: np.empty((h, w), t) for k, t in (kinds | {"key2": np.uint32}).items()}
-    return SimpleNamespace(**ws, shape=(h, w), field=None, offsets=np.empty((h, w, 2), np.int16))
+    extra = dict(field=None, sin_beta=None, grid_key=None)
+    return SimpleNamespace(**ws, **extra, shape=(h, w), offsets=np.empty((h, w, 2), np.int16))
 
 
 class DepthNoiseModel:
@@ -207,6 +291,34 @@ class DepthNoiseModel:
             round(c.specular_dropout * 256),
         )
         self._ws: SimpleNamespace | None = None
+        self._matcher = BlockMatcher(
+            c.bm_window_px,
+            c.bm_pattern_cell_px,
+            c.bm_pattern_seed,
+            c.bm_min_dots,
+            c.bm_match_fraction,
+            c.bm_surface_tol_px,
+        )
+        cap = math.radians(min(c.grazing_angle_deg, 85.0))
+        self._tan_lut = np.tan(np.minimum(theta, cap)).astype(np.float32)  # level -> tan(theta)
+
+    @property
+    def needs_projector_depth(self) -> bool:
+        """Whether :meth:`apply` needs ``projector_depth`` (see :attr:`projector_offset`)."""
+        return self.config.enabled and self.config.projector_shadow
+
+    @property
+    def projector_offset(self) -> tuple[float, float, float]:
+        """The projector's position in the camera frame (m, OpenCV: x right, y down, z forward)."""
+        return (self.config.projector_side * self.config.baseline_m, 0.0, 0.0)
+
+    def draw_unit(self, rng: np.random.Generator) -> UnitError | None:
+        """This sensor unit's systematic error (draw once per episode; 4 draws from ``rng``),
+        or None (no draw) for a sensor without one (e.g. the default, v0/v1's)."""
+        c = self.config
+        if not (c.enabled and (c.unit_scale_max or c.unit_offset_max_m or c.unit_shift_max_px)):
+            return None
+        return draw_unit_error(rng, c.unit_scale_max, c.unit_offset_max_m, c.unit_shift_max_px)
 
     @property
     def uses_specular(self) -> bool:
@@ -224,18 +336,45 @@ class DepthNoiseModel:
         *,
         cx: float | None = None,
         cy: float | None = None,
+        projector_depth: np.ndarray | None = None,
+        unit: UnitError | None = None,
     ) -> np.ndarray:
         """Noisy copy of ``depth``: (H, W) float32 m, 0 = missing.
 
         ``depth``: (H, W) float ideal z-depth (m, 0 = no return, finite). ``fx``, ``fy``: focal
         lengths of this image (px); ``cx``, ``cy``: its principal point (px, default: the image
         centre), for incidence angles. ``rng``: all randomness. ``specular``: optional (H, W)
-        bool mask of specular surfaces. With ``enabled=False``: ``depth`` clipped to the range.
+        bool mask of specular surfaces. ``projector_depth``: (H, W) z-depth rendered from
+        :attr:`projector_offset` with the same intrinsics, required if
+        :attr:`needs_projector_depth`. ``unit``: this unit's error (:meth:`draw_unit`; None:
+        none). With ``enabled=False``: ``depth`` clipped to the range.
         """
         cfg, z = self.config, self._validate(depth, specular)
         lo, hi = np.float32(cfg.min_range_m), np.float32(cfg.max_range_m)
         if not cfg.enabled:
             return np.where((z < lo) | (z > hi), np.float32(0), z)
+        if unit is not None and not isinstance(unit, UnitError):
+            raise SensorError(f"unit must be a UnitError or None, got {type(unit).__name__}")
+        if self.needs_projector_depth:
+            zp = None if projector_depth is None else np.asarray(projector_depth)
+            if zp is None or zp.shape != z.shape or zp.dtype.kind != "f":
+                raise SensorError(
+                    f"projector_shadow needs projector_depth, a float array of shape {z.shape} "
+                    f"rendered at offset {self.projector_offset}; valid: that, or a config with "
+                    "projector_shadow=False"
+                )
+            zp = np.ascontiguousarray(zp, dtype=np.float32)
+            lit = projector_lit(z, zp, fx, self.projector_offset[0], cfg.shadow_tolerance)
+            z = np.where(lit, z, np.float32(0))
+        noisy = self._apply(z, float(fx), float(fy), rng, specular, cx, cy)
+        if unit is None:
+            return noisy
+        noisy = apply_unit(noisy, unit)  # the unit measures depth; its range limits what it reports
+        return cv2.threshold(noisy, float(hi), 0, cv2.THRESH_TOZERO_INV, dst=noisy)[1]
+
+    def _apply(self, z, fx, fy, rng, specular, cx, cy) -> np.ndarray:
+        cfg = self.config
+        lo, hi = np.float32(cfg.min_range_m), np.float32(cfg.max_range_m)
         (h, w), n, fx, fy = z.shape, z.size, float(fx), float(fy)
         if self._ws is None or self._ws.shape != (h, w):
             self._ws = _workspace(h, w)
@@ -254,19 +393,25 @@ class DepthNoiseModel:
         sigma += dz
         sigma += np.float32(cfg.axial_a)
         noisy = ws.noisy
-        self._gauss.take(raw[: 2 * n].view(np.uint16), out=noisy.reshape(-1), mode="clip")
-        noisy *= sigma
-        noisy += z
-        if cfg.disparity_step_px > 0:
+        if cfg.block_matching:  # its noise is correlated over the window: from raw bytes
+            lost = self._block_match(z, fx, noisy, sigma, level, cx, cy, raw[:n].reshape(h, w))
+        else:
+            self._gauss.take(raw[: 2 * n].view(np.uint16), out=noisy.reshape(-1), mode="clip")
+            noisy *= sigma
+            noisy += z
+        if cfg.disparity_step_px > 0 and not cfg.block_matching:  # (it quantises disparity)
             k = np.float32(fx * cfg.baseline_m / cfg.disparity_step_px)
             with np.errstate(divide="ignore", invalid="ignore"):
                 np.divide(k, np.rint(np.divide(k, noisy, out=ws.f1), out=ws.f1), out=noisy)
 
         # Missing depth.
         drop, edge, mask = np.less_equal(z, 0, out=ws.drop), ws.edge, ws.mask
-        spread = np.subtract(cv2.dilate(z, _K3, dst=ws.f1), cv2.erode(z, _K3, dst=ws.f2), out=ws.f1)
-        np.greater(spread, np.float32(cfg.edge_threshold_m), out=edge)
-        if self._edge_byte > 0:
+        if cfg.block_matching:  # the matcher decides what is lost at edges
+            drop |= lost
+        elif self._edge_byte > 0:
+            spread = cv2.dilate(z, _K3, dst=ws.f1)
+            np.subtract(spread, cv2.erode(z, _K3, dst=ws.f2), out=spread)
+            np.greater(spread, np.float32(cfg.edge_threshold_m), out=edge)
             np.less(raw[6 * n : 7 * n].reshape(h, w), self._edge_byte, out=mask)
             drop |= np.logical_and(mask, edge, out=mask)
         if cfg.grazing_angle_deg < 90:
@@ -287,6 +432,30 @@ class DepthNoiseModel:
         self._lateral_lut.take(key.view(np.uint16), out=offsets.reshape(-1), mode="clip")
         offsets += _pixel_grid(z.shape, fx, fy, cx, cy)[3]
         return cv2.remap(noisy, offsets, None, cv2.INTER_NEAREST, borderMode=cv2.BORDER_REPLICATE)
+
+    def _block_match(self, z, fx, noisy, sigma, level, cx, cy, random_bytes) -> np.ndarray:
+        """Block-matched depth plus disparity noise in ``noisy`` (before quantisation); lost."""
+        cfg, ws = self.config, self._ws
+        fb = fx * cfg.baseline_m
+        d = disparity(fb, z, out=ws.f2)  # px; 0 where z is 0
+        if ws.sin_beta is None or ws.sin_beta.shape != z.shape or ws.grid_key != (fx, cx, cy):
+            r2 = np.broadcast_to(_pixel_grid(z.shape, fx, fx, cx, cy)[2], z.shape)
+            ws.sin_beta, ws.grid_key = np.sqrt(1 - 1 / r2).astype(np.float32), (fx, cx, cy)
+        slope = cv2.LUT(level, self._tan_lut, dst=ws.f3)
+        slope += ws.sin_beta
+        slope *= d
+        slope *= np.float32(8 * math.sqrt(2) / fx)
+        matched, lost = self._matcher.match(d, slope, cfg.projector_side)
+        step, k = cfg.disparity_step_px, cfg.bm_window_px
+        noise = disparity_noise(random_bytes, sigma, d, fb, step, k, out=noisy)
+        noise += matched  # noisy disparity (lost pixels: 0, dropped later)
+        if step > 0:  # quantised to the disparity step, in disparity
+            noise *= np.float32(1.0 / step)
+            np.rint(noise, out=noise)
+            fb /= step
+        with np.errstate(divide="ignore", invalid="ignore"):
+            np.divide(np.float32(fb), noise, out=noisy)
+        return lost
 
     def _specular_drop(self, cosv: np.ndarray, rng: np.random.Generator, ws) -> np.ndarray:
         """(H, W) bool: highlight (surface facing the camera) or inside a random blob."""

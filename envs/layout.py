@@ -15,11 +15,13 @@ import mujoco
 import numpy as np
 
 from ipbench.assets.objects import (
+    CATALOGS,
     CATEGORIES,
     INSTANCES_PER_CATEGORY,
     ObjectInstance,
     RestingPose,
     get_instance,
+    instances,
     resting_poses,
 )
 
@@ -146,6 +148,7 @@ def sample_layout(
     table_height: float,
     max_tries: int = 300,
     restarts: int = 50,
+    catalog: str = "v1",
 ) -> Layout:
     """Sample a scene's objects and poses from ``seed``.
 
@@ -156,6 +159,9 @@ def sample_layout(
     area_center : (2,) or (3,) world centre of the spawn area (m).
     area_half : (2,) half extents of the spawn area (m).
     table_height : z of the table top (m).
+    catalog : the object catalogue the instances come from (``"v1"``: 12 instances per
+        category, known and unknown both appear; ``"v2"``: every family and split of each
+        category can appear, and at least two splits do).
     """
     if isinstance(scene, SceneConfig) and scene.packing not in ("scatter", "cluster"):
         raise LayoutError(f"unknown packing {scene.packing!r}; valid: scatter, cluster")
@@ -163,24 +169,55 @@ def sample_layout(
         if scene not in SCENES:
             raise LayoutError(f"unknown scene {scene!r}; valid scenes: {', '.join(SCENES)}")
         scene = SCENES[scene]
+    if catalog not in CATALOGS:
+        raise LayoutError(f"unknown catalog {catalog!r}; valid: {', '.join(CATALOGS)}")
     rng = np.random.default_rng([seed, 2018])
-    picks: list[ObjectInstance] = []
-    while True:  # known and unknown instances both appear
+    # v1 draws its objects once; v2's larger families (2 L cartons, soup bowls) do not always
+    # fit one pile: it draws the objects again (from the same seeded stream) when they do not
+    draws = 1 if catalog == "v1" else _REDRAWS
+    for _ in range(draws):
+        picks = _pick_v1(scene, rng) if catalog == "v1" else _pick(scene, rng, catalog)
+        for _ in range(restarts if catalog == "v1" else _V2_RESTARTS):
+            placed = _place(scene, picks, rng, area_center, area_half, table_height, max_tries)
+            if placed is not None:
+                return Layout(scene=scene.name, seed=int(seed), objects=placed)
+    raise LayoutError(
+        f"could not place the {len(picks)} objects of scene {scene.name!r} after {restarts} "
+        "attempts; enlarge area_fraction or reduce gap"
+    )
+
+
+_REDRAWS = 50
+_V2_RESTARTS = 5
+"""How often a v2 layout draws its objects again when they cannot be placed, and how many
+placement attempts each draw gets."""
+
+
+def _pick_v1(scene: SceneConfig, rng: np.random.Generator) -> list[ObjectInstance]:
+    """Sorting-v0/v1's draw (kept exactly): known and unknown instances both appear."""
+    while True:
         picks = [
             get_instance(cat, int(i))
             for cat, n in zip(CATEGORIES, scene.counts, strict=True)
             for i in rng.choice(INSTANCES_PER_CATEGORY, size=n, replace=False)
         ]
         if len({p.known for p in picks}) == 2 or len(picks) < 2:
-            break
-    for _ in range(restarts):
-        placed = _place(scene, picks, rng, area_center, area_half, table_height, max_tries)
-        if placed is not None:
-            return Layout(scene=scene.name, seed=int(seed), objects=placed)
-    raise LayoutError(
-        f"could not place the {len(picks)} objects of scene {scene.name!r} after {restarts} "
-        "attempts; enlarge area_fraction or reduce gap"
-    )
+            return picks
+
+
+def _pick(scene: SceneConfig, rng: np.random.Generator, catalog: str) -> list[ObjectInstance]:
+    """Instances from the whole catalogue of each category (every family and split can
+    appear, without repeats); redrawn until at least two splits appear."""
+    every = instances(catalog=catalog)
+    pools = {cat: [inst for inst in every if inst.category == cat] for cat in CATEGORIES}
+    while True:
+        picks = [
+            pools[cat][int(i)]
+            for cat, n in zip(CATEGORIES, scene.counts, strict=True)
+            for i in rng.choice(len(pools[cat]), size=n, replace=False)
+        ]
+        if len({p.split for p in picks}) >= 2 or len(picks) < 2:
+            return picks
 
 
 def _place(scene, picks, rng, area_center, area_half, table_height, max_tries):

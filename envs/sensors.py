@@ -20,7 +20,7 @@ from dataclasses import dataclass
 import mujoco
 import numpy as np
 
-from .depth_noise import DepthNoiseModel, SensorError
+from .depth_noise import DepthNoiseModel, SensorError, UnitError
 
 __all__ = [
     "CameraIntrinsics",
@@ -30,6 +30,7 @@ __all__ = [
     "camera_id",
     "camera_pose",
     "intrinsics",
+    "observe_depth",
     "specular_geoms",
 ]
 
@@ -196,6 +197,26 @@ class SensorRenderer:
         rgb, raw, buf = self._render(data, camera, width, height, read_depth=True)
         return rgb[::-1].copy(), self._metric_depth(raw[::-1], buf)
 
+    def render_depth(
+        self,
+        data: mujoco.MjData,
+        camera: Camera,
+        width: int,
+        height: int,
+        offset: tuple[float, float, float] = (0.0, 0.0, 0.0),
+    ) -> np.ndarray:
+        """(H, W) float32 z-depth (m, 0 = nothing hit) of ``camera`` moved by ``offset``.
+
+        ``offset`` (m) is along the camera's own axes, OpenCV convention (x right, y down, z
+        forward), e.g. ``(0.075, 0, 0)`` for a structured-light projector beside the camera;
+        orientation and intrinsics stay those of ``camera``. Depth only (no colour read-back).
+        """
+        offset = np.asarray(offset, dtype=np.float64)
+        if offset.shape != (3,) or not np.isfinite(offset).all():
+            raise SensorError(f"offset must be 3 finite floats (m, camera frame), got {offset!r}")
+        raw, buf = self._render(data, camera, width, height, read_depth=True, offset=offset)[1:]
+        return self._metric_depth(raw[::-1], buf)
+
     def render_segmentation(
         self, data: mujoco.MjData, camera: Camera, width: int, height: int
     ) -> np.ndarray:
@@ -236,7 +257,9 @@ class SensorRenderer:
         except Exception:  # noqa: BLE001 - interpreter shutdown: nothing left to report to
             pass
 
-    def _render(self, data, camera, width, height, *, read_depth: bool, segment: bool = False):
+    def _render(
+        self, data, camera, width, height, *, read_depth: bool, segment: bool = False, offset=None
+    ):
         if self._con is None:
             raise SensorError("the SensorRenderer is closed; create a new one")
         self._cam.fixedcamid = camera_id(self.model, camera)
@@ -249,10 +272,15 @@ class SensorRenderer:
         mujoco.mjv_updateScene(self.model, data, self._opt, None, self._cam, _CATMASK, self._scene)
         flags = self._scene.flags
         flags[mujoco.mjtRndFlag.mjRND_SEGMENT] = flags[mujoco.mjtRndFlag.mjRND_IDCOLOR] = segment
+        if offset is not None and offset.any():  # move both GL eyes along the camera's axes
+            for eye in self._scene.camera:
+                fwd, up = np.array(eye.forward), np.array(eye.up)
+                eye.pos = eye.pos + offset @ np.stack([np.cross(fwd, up), -up, fwd])
         rect = mujoco.MjrRect(0, 0, width, height)
         mujoco.mjr_setBuffer(mujoco.mjtFramebuffer.mjFB_OFFSCREEN, self._con)
         mujoco.mjr_render(rect, self._scene, self._con)
-        mujoco.mjr_readPixels(rgb, raw if read_depth else None, rect, self._con)
+        colour = None if offset is not None else rgb
+        mujoco.mjr_readPixels(colour, raw if read_depth else None, rect, self._con)
         return rgb, raw, buf
 
     def _metric_depth(self, raw: np.ndarray, buf: np.ndarray) -> np.ndarray:
@@ -285,6 +313,30 @@ class SensorRenderer:
             missing |= depth > 0.99 * _SKYBOX_RADIUS * zfar * cos_corner * facets
         np.copyto(depth, 0, where=missing)
         return depth
+
+
+def observe_depth(
+    renderer: SensorRenderer,
+    noise: DepthNoiseModel,
+    data: mujoco.MjData,
+    camera: Camera,
+    depth: np.ndarray,
+    k: CameraIntrinsics,
+    rng: np.random.Generator,
+    specular: np.ndarray | None = None,
+    unit: UnitError | None = None,
+) -> np.ndarray:
+    """What the sensor returns for the ideal ``depth`` (H, W) float32 m of ``camera``: the
+    noise model applied, with the projector's depth rendered when the model needs it and this
+    episode's ``unit`` error. ``k``: the image's intrinsics; ``specular``: (H, W) bool mask."""
+    extra: dict = {}
+    if noise.needs_projector_depth:
+        extra["projector_depth"] = renderer.render_depth(
+            data, camera, k.width, k.height, offset=noise.projector_offset
+        )
+    if unit is not None:
+        extra["unit"] = unit
+    return noise.apply(depth, k.fx, k.fy, rng, specular=specular, **extra)
 
 
 class RgbdCamera:

@@ -60,11 +60,17 @@ from ipbench.assets.compose import (
     arm_joint_names,
     build_workcell_spec,
 )
-from ipbench.assets.objects import CATEGORIES
-from ipbench.envs.depth_noise import DepthNoiseConfig, DepthNoiseModel
+from ipbench.assets.objects import CATALOGS, CATEGORIES
+from ipbench.envs.depth_noise import STRUCTURED_LIGHT, DepthNoiseConfig, DepthNoiseModel
 from ipbench.envs.layout import SCENES, Layout, sample_layout
 from ipbench.envs.robot import MotionConfig, RobotController, ik_model
-from ipbench.envs.sensors import SensorRenderer, camera_pose, intrinsics, specular_geoms
+from ipbench.envs.sensors import (
+    SensorRenderer,
+    camera_pose,
+    intrinsics,
+    observe_depth,
+    specular_geoms,
+)
 from ipbench.envs.skills import SkillConfig, SkillResult, Skills
 from ipbench.envs.world import Places, World, build_world, object_status
 
@@ -76,6 +82,7 @@ __all__ = [
     "MAX_JAW_OPENING",
     "MAX_OBJECT_SPEED",
     "V0",
+    "V2",
     "workcell_places",
     "SortingConfig",
     "SortingEnv",
@@ -155,6 +162,9 @@ class SortingConfig:
     finger_armature : reflected inertia of each gripper finger's drive (kg); ``None`` keeps
         the model's (``assets/motoman/gripper.xml``).
     bin_depth : inside depth of the bins (m).
+    catalog : the object catalogue (``"v1"``: one shape family per category, flat colours;
+        ``"v2"``: several real-product families per category with printed textures; see
+        :mod:`ipbench.assets.objects`).
     """
 
     scene: str = "uncluttered"
@@ -170,6 +180,7 @@ class SortingConfig:
     undo_blowups: bool = True
     finger_armature: float | None = None
     bin_depth: float = BIN_INTERIOR[2]
+    catalog: str = "v1"
 
 
 V0: dict = {
@@ -182,6 +193,11 @@ V0: dict = {
 """The settings ``Sorting-v0`` fixes: no jaw pre-shaping, blind descents, fingers stepped
 shut, light fingers, 24 cm deep bins, and a blow-up truncates the episode."""
 
+V2: dict = {"catalog": "v2", "depth_noise": STRUCTURED_LIGHT}
+"""The settings ``Sorting-v2`` (under development) adds to v1: the v2 object catalogue (real
+product families, printed textures, train / similar / novel splits) and structured-light
+depth as the sensor makes it (projector shadow, disparity block matching, per-unit error)."""
+
 
 class SortingEnv(gym.Env):
     """Sort household objects into bins with the CloPeMa robot (see the module docstring)."""
@@ -192,6 +208,10 @@ class SortingEnv(gym.Env):
         if render_mode not in (None, "rgb_array"):
             raise ValueError(f"render_mode must be None or 'rgb_array', not {render_mode!r}")
         self.config = SortingConfig(**config)
+        if self.config.catalog not in CATALOGS:
+            raise ValueError(
+                f"unknown catalog {self.config.catalog!r}; valid: {', '.join(CATALOGS)}"
+            )
         if self.config.scene not in SCENES:
             raise ValueError(
                 f"unknown scene {self.config.scene!r}; valid scenes: {', '.join(SCENES)}"
@@ -269,7 +289,11 @@ class SortingEnv(gym.Env):
                 places.spawn_area.center,
                 places.spawn_area.half,
                 places.table_height,
+                catalog=self.config.catalog,
             )
+        # the sensor unit of this episode (its systematic error); its own stream, so that
+        # the episode's other draws do not depend on whether the sensor has one
+        self._unit = self._noise.draw_unit(np.random.default_rng([layout_seed, 7500]))
         spec = build_workcell_spec(self.config.bin_depth)
         if self.config.finger_armature is not None:
             for finger in ("a", "b"):
@@ -490,12 +514,9 @@ class SortingEnv(gym.Env):
         seg = r.render_segmentation(d, WRIST_CAMERA, w, h)
         self._wrist_seg = seg
         k_wrist = intrinsics(m, WRIST_CAMERA, w, h)
-        depth = self._noise.apply(
-            depth,
-            k_wrist.fx,
-            k_wrist.fy,
-            self.np_random,
-            specular=self._specular_geoms[seg] if self._noise.uses_specular else None,
+        specular = self._specular_geoms[seg] if self._noise.uses_specular else None
+        depth = observe_depth(
+            r, self._noise, d, WRIST_CAMERA, depth, k_wrist, self.np_random, specular, self._unit
         )
         hh, hw = self.config.head_size
         obs = {

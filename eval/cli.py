@@ -1,10 +1,12 @@
 """The ``ipbench`` command.
 
 ipbench demo [--out DIR] [--scenes uncluttered,cluttered] [--seed N] [--no-video]
-ipbench eval perception [--out DIR] [--cache DIR]
+ipbench eval perception [--env ID] [--out DIR] [--cache DIR]
 ipbench eval sorting [--scenes ...] [--policies ...] [--seeds A:B] [--workers N]
                      [--backend process|ray] [--video] [--out DIR] [--cache DIR]
-ipbench bench sim|perception|eval [--json [FILE]]
+ipbench figures [--env ID] [--out DIR]
+ipbench bench sim [--env ID] [--scene S] [--json [FILE]]
+ipbench bench perception|eval [--json [FILE]]
 """
 
 from __future__ import annotations
@@ -27,6 +29,22 @@ def _add_json_option(parser: argparse.ArgumentParser) -> None:
         metavar="FILE",
         help="also write the figures as one JSON object (to FILE, or stdout with no FILE)",
     )
+
+
+def _add_env_option(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument(
+        "--env",
+        default="ipbench/Sorting-v1",
+        help="environment id whose objects and sensor are used (e.g. ipbench/Sorting-v2)",
+    )
+
+
+def _env_id(text: str) -> str:
+    from ipbench.envs import ENV_IDS
+
+    if text not in ENV_IDS:
+        raise SystemExit(f"ipbench: unknown --env {text!r}; valid: {', '.join(ENV_IDS)}")
+    return text
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -63,6 +81,7 @@ def build_parser() -> argparse.ArgumentParser:
         "on the unknown ones and on cluttered-scene segments; writes metrics.json, "
         "perception.md and figures to --out.",
     )
+    _add_env_option(perception)
     perception.add_argument(
         "--out", type=Path, default=Path("results/perception"), help="report folder"
     )
@@ -112,6 +131,17 @@ def build_parser() -> argparse.ArgumentParser:
         "--cache", type=Path, default=Path("results/cache"), help="model and view cache folder"
     )
 
+    figures = sub.add_parser(
+        "figures",
+        help="the README's pictures of an env's objects and sensor",
+        description="Renders every object family of the env's catalogue (objects_<v>.png) and "
+        "a cluttered wrist view: RGB, ideal and sensor depth (depth_<v>.png), into --out.",
+    )
+    figures.add_argument(
+        "--env", default="ipbench/Sorting-v2", help="environment id (e.g. ipbench/Sorting-v2)"
+    )
+    figures.add_argument("--out", type=Path, default=Path("assets"), help="output folder")
+
     bench = sub.add_parser("bench", help="speed benchmarks that print figures")
     bench_sub = bench.add_subparsers(dest="target", required=True, metavar="TARGET")
     sim = bench_sub.add_parser(
@@ -120,6 +150,7 @@ def build_parser() -> argparse.ArgumentParser:
         description="Physics steps/s (vs raw mj_step), wrist RGB-D fps at 640x480, head "
         "stereo fps, pick-and-place skill wall time, reset time.",
     )
+    _add_env_option(sim)
     sim.add_argument("--scene", default="uncluttered", help="scene to measure")
     _add_json_option(sim)
     bench_perception = bench_sub.add_parser(
@@ -209,14 +240,15 @@ def main(argv: list[str] | None = None) -> int:
         print(f"results written to {args.out.resolve()}")
         return 0
     if args.command == "eval" and args.target == "perception":
-        from ipbench.eval.perception import run_perception_eval
+        from ipbench.eval.perception import PerceptionEvalConfig, run_perception_eval
 
+        config = PerceptionEvalConfig.for_env(_env_id(args.env))
         _writable(args.out)
         _writable(args.cache)
-        metrics = run_perception_eval(args.out, args.cache)
-        for subset, by_name in metrics.items():
-            row = ", ".join(f"{n} {m['accuracy']:.3f}" for n, m in by_name.items())
-            print(f"{subset} accuracy on unknown instances: {row}")
+        metrics = run_perception_eval(args.out, args.cache, config)
+        for split, by_name in metrics["splits"].items():
+            row = ", ".join(f"{n} {m['accuracy']:.3f}" for n, m in by_name.items() if m.get("n", 0))
+            print(f"5-class accuracy, {split}: {row or 'no views'}")
         print(f"report written to {(args.out / 'perception.md').resolve()}")
         return 0
     if args.command == "eval" and args.target == "sorting":
@@ -245,6 +277,18 @@ def main(argv: list[str] | None = None) -> int:
             print(f"{scene}: {row}")
         print(f"report written to {(args.out / 'sorting.md').resolve()}")
         return 0
+    if args.command == "figures":
+        from ipbench.eval.figures import depth_figure, family_gallery
+
+        env_id = _env_id(args.env)
+        _writable(args.out)
+        version = env_id.rsplit("-", 1)[-1]
+        for path in (
+            family_gallery(args.out / f"objects_{version}.png", env_id),
+            depth_figure(args.out / f"depth_{version}.png", env_id),
+        ):
+            print(f"wrote {path}")
+        return 0
     if args.command == "bench" and args.target == "eval":
         from ipbench.eval.bench import report
         from ipbench.eval.bench_eval import bench_eval
@@ -256,7 +300,7 @@ def main(argv: list[str] | None = None) -> int:
         from ipbench.eval.bench import bench_sim, report
 
         _scenes(args.scene)
-        _print_figures(bench_sim(args.scene), args.json, report)
+        _print_figures(bench_sim(args.scene, env_id=_env_id(args.env)), args.json, report)
         return 0
     if args.command == "bench" and args.target == "perception":
         from ipbench.eval.bench import report

@@ -3,7 +3,7 @@
 Two viewing conditions, one model each (:data:`CONDITIONS`): ``scene`` models classify what the
 wrist camera sees on the table (and in the inspection area) and train on the *known*
 instances' isolated views; ``in_hand`` models classify an object held up to the camera and train
-on the known instances' in-hand views (see :mod:`ipbench.perception.dataset`). Both share one
+on the known instances' in-hand views (see :mod:`ipbench.eval.dataset`). Both share one
 codebook, fitted on the isolated views. The test sets are the *unknown* instances (isolated,
 and in hand) and segments cut out of cluttered scenes. The GP, the Platt-calibrated SVM and
 scikit-learn's one-vs-rest GP are trained on the same 256-word bag-of-words vectors, for all
@@ -20,16 +20,17 @@ from __future__ import annotations
 import hashlib
 import json
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
 from threadpoolctl import threadpool_limits
 
-from ipbench.assets.objects import CATEGORIES
+from ipbench.assets.objects import CATEGORIES, instances
+from ipbench.envs.depth_noise import SENSOR_EFFECTS, without_effect
+from ipbench.eval.dataset import DatasetConfig, ViewSet, load_or_build
 from ipbench.perception.classifiers import CLASSIFIERS, GPClassifier, make_classifier
 from ipbench.perception.cloud import depth_to_points
-from ipbench.perception.dataset import DatasetConfig, ViewSet, load_or_build
 from ipbench.perception.features import Codebook
 from ipbench.perception.metrics import (
     accuracy,
@@ -43,12 +44,16 @@ from ipbench.perception.segment_eval import match_segments
 from ipbench.perception.segmentation import segment_scene
 
 __all__ = [
+    "ABLATION_PROTOCOL",
     "CONDITIONS",
+    "SPLIT_TESTS",
     "PerceptionEvalConfig",
     "SUBSETS",
     "THESIS",
     "run_perception_eval",
     "segmentation_scores",
+    "sensor_ablation",
+    "split_tests",
     "encode",
     "model_key",
     "trained_model",
@@ -64,6 +69,23 @@ SUBSETS: dict[str, tuple[str, ...]] = {
     "3class": ("juice_bottle", "milk_carton", "mug"),
 }
 """Class subsets evaluated: all five, and the chapter-6 three."""
+
+SPLIT_TESTS: tuple[str, ...] = ("similar", "novel", "in_hand", "clutter")
+"""The 5-class test sets of ``metrics.json["splits"]``: table-top views of new instances of
+trained families (*similar*) and of held-out families (*novel*), in-hand views of every
+instance not trained on (classified by the in-hand model), and cluttered-scene segments."""
+
+ABLATION_PROTOCOL: dict = {
+    "yaw_step_deg": 60.0,
+    "elevations_deg": (50.0,),
+    "side_elevation_deg": 55.0,
+    "in_hand_views": 0,
+    "cluttered_seeds": (),
+}
+"""The lighter capture protocol of the sensor ablation (6 yaws, one elevation, lying too; no
+in-hand views or clutter): each effect switched off costs a full re-render of train and test
+views, so the ablation compares its rows with its own all-effects-on row, not with
+``splits``."""
 
 THESIS = {"5class": {"gp": 0.79, "svm": 0.75}, "3class": {"gp": 0.92, "svm": 0.83}}
 """The thesis' accuracies on real Xtion data (ch. 5 and 6), shown beside ours."""
@@ -82,6 +104,8 @@ class PerceptionEvalConfig:
     seed : seeds the codebook and the classifiers.
     segmentation_seeds : episode seeds of both standard scenes whose segmentation is scored
         against the ground-truth masks.
+    ablation : also run the sensor ablation (:func:`sensor_ablation`): every switchable
+        effect of the env's sensor switched off in turn, on the :data:`ABLATION_PROTOCOL`.
     """
 
     dataset: DatasetConfig = field(default_factory=DatasetConfig)
@@ -90,6 +114,14 @@ class PerceptionEvalConfig:
     classifiers: tuple[str, ...] = CLASSIFIERS
     seed: int = 0
     segmentation_seeds: tuple[int, ...] = tuple(range(10_100, 10_110))
+    ablation: bool = False
+
+    @classmethod
+    def for_env(cls, env_id: str, **overrides) -> PerceptionEvalConfig:
+        """The benchmark's configuration for ``env_id``'s objects and sensor (the sensor
+        ablation for the catalogues with splits to generalise to, i.e. v2 on)."""
+        dataset = DatasetConfig(env_id=env_id)
+        return cls(dataset=dataset, ablation=dataset.catalog != "v1", **overrides)
 
 
 def model_key(
@@ -220,7 +252,7 @@ def segmentation_scores(
 
     out = {}
     for scene in SCENES:
-        env = gym.make("ipbench/Sorting-v1", scene=scene, depth_noise=config.dataset.depth_noise)
+        env = gym.make(config.dataset.env_id, scene=scene, depth_noise=config.dataset.sensor)
         rows = []
         for seed in seeds:
             obs, info = env.reset(seed=seed)
@@ -235,6 +267,53 @@ def segmentation_scores(
             "merged": int(sum(r["merged"] for r in rows)),
             "split": int(sum(r["split"] for r in rows)),
         }
+    return out
+
+
+def split_tests(views: ViewSet, catalog: str) -> dict[str, ViewSet]:
+    """The views of each of :data:`SPLIT_TESTS` (see there), by the split of each view's
+    instance in ``catalog`` (v1: its unknown instances are *similar*; it has no *novel*)."""
+    split_of = {inst.name: inst.split for inst in instances(catalog=catalog)}
+    split = np.array([split_of.get(str(n), "train") for n in views.instance])
+    isolated, hand = views.source == "isolated", views.source == "in_hand"
+    return {
+        "similar": views.subset(isolated & (split == "similar")),
+        "novel": views.subset(isolated & (split == "novel")),
+        "in_hand": views.subset(hand & (split != "train")),
+        "clutter": views.subset(views.source == "cluttered"),
+    }
+
+
+def _brief(scores: dict) -> dict:
+    """The headline figures of a score entry (``n`` and, with views, accuracy, log loss,
+    ECE)."""
+    return {k: scores[k] for k in ("n", "accuracy", "log_loss", "ece") if k in scores}
+
+
+def sensor_ablation(cache: Path, config: PerceptionEvalConfig) -> dict:
+    """5-class accuracy with every switchable effect of the env's sensor switched off in turn
+    (key: the effect; ``"none"``: every effect on), trained on the *train* split and tested on
+    the *similar* and *novel* table-top views of :data:`ABLATION_PROTOCOL` captures, per
+    classifier: ``{effect: {classifier: {"accuracy", "log_loss", "ece", "n"}}}``. An effect
+    the sensor does not use is left out."""
+    base = replace(config.dataset, **ABLATION_PROTOCOL)
+    sensor = base.sensor
+    effects = ["none"] + [e for e in SENSOR_EFFECTS if without_effect(sensor, e) != sensor]
+    index = {i: i for i in range(len(CATEGORIES))}
+    out: dict = {}
+    for effect in effects:
+        noise = sensor if effect == "none" else without_effect(sensor, effect)
+        views = load_or_build(cache, replace(base, depth_noise=noise))
+        train = training_views(views, "scene")
+        sets = split_tests(views, base.catalog)
+        test = ViewSet.concat([sets["similar"], sets["novel"]])
+        codebook = _fit_codebook(train, config)
+        x_train, x_test = encode(train, codebook), encode(test, codebook)
+        fitted: dict = {}
+        out[effect] = {}
+        for name in config.classifiers:
+            clf, _ = _fit(name, x_train, train.labels, index, config.seed, fitted)
+            out[effect][name] = _brief(_score(clf, test, x_test, index)[0])
     return out
 
 
@@ -293,7 +372,10 @@ def _run_perception_eval(out: Path, cache: Path, config: PerceptionEvalConfig) -
         "cluttered": views.subset(views.source == "cluttered"),
         "in_hand": views.subset((views.source == "in_hand") & ~views.known),
     }
+    split_sets = split_tests(views, config.dataset.catalog)
+    splits: dict = {}
     codebook = _fit_codebook(train, config)
+    x_split = {name: encode(t, codebook) for name, t in split_sets.items()}
     x_train = encode(train, codebook)
     x_hand = encode(hand_train, codebook)
     x_tests = {name: encode(t, codebook) for name, t in tests.items()}
@@ -325,6 +407,17 @@ def _run_perception_eval(out: Path, cache: Path, config: PerceptionEvalConfig) -
                 entry["in_hand"] = {**scores, "fit_s": round(hand_fit_s, 3)}
                 figures[(subset, name, "in_hand")] = (probs, labels)
             metrics[subset][name] = entry
+            if subset == "5class":
+                scene_clf, hand_clf = clf, fitted_hand.get(name, (None,))[0]
+                for split, test in split_sets.items():
+                    model = hand_clf if split == "in_hand" else scene_clf
+                    got = {"n": 0}
+                    if model is not None:
+                        got = _score(model, test, x_split[split], index)[0]
+                    splits.setdefault(split, {})[name] = _brief(got)
+    metrics["splits"] = splits
+    if config.ablation:
+        metrics["ablation"] = sensor_ablation(cache, config)
     segmentation = segmentation_scores(config.segmentation_seeds, config)
     (out / "metrics.json").write_text(json.dumps(metrics, indent=2))
     (out / "segmentation.json").write_text(json.dumps(segmentation, indent=2))

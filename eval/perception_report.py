@@ -117,6 +117,65 @@ def _calibration_note(metrics: dict) -> list[str]:
     return lines
 
 
+_SPLIT_TITLES = {
+    "similar": "similar (new instances of trained families, table top)",
+    "novel": "novel (held-out families, table top)",
+    "in_hand": "in hand (instances not trained on; in-hand model)",
+    "clutter": "clutter (segments of cluttered scenes)",
+}
+
+
+def _cell(m: dict) -> str:
+    if not m.get("n"):
+        return "—"
+    return f"{m['accuracy']:.3f} / {m['log_loss']:.3f} / {m['ece']:.3f} (n={m['n']})"
+
+
+def _splits_table(metrics: dict, thesis: dict) -> list[str]:
+    """5 classes on every test split: accuracy / log loss / ECE per classifier."""
+    splits = metrics.get("splits", {})
+    if not splits:
+        return []
+    names = list(next(iter(splits.values())))
+    lines = [
+        "## 5 classes on every test split",
+        "",
+        "Accuracy / log loss / ECE (15 bins), and the number of views. The thesis, with a real "
+        "Xtion on real objects: GP "
+        f"{thesis['5class']['gp']:.2f}, SVM {thesis['5class']['svm']:.2f} (5 classes); GP "
+        f"{thesis['3class']['gp']:.2f}, SVM {thesis['3class']['svm']:.2f} (3 classes).",
+        "",
+        "| split | " + " | ".join(names) + " |",
+        "|---|" + "---|" * len(names),
+    ]
+    for split, by_name in splits.items():
+        cells = [_cell(by_name.get(n, {})) for n in names]
+        lines.append(f"| {_SPLIT_TITLES.get(split, split)} | " + " | ".join(cells) + " |")
+    return lines + [""]
+
+
+def _ablation_table(metrics: dict) -> list[str]:
+    """Accuracy with each sensor effect switched off in turn."""
+    ablation = metrics.get("ablation", {})
+    if not ablation:
+        return []
+    names = list(next(iter(ablation.values())))
+    lines = [
+        "## Sensor ablation",
+        "",
+        "5-class accuracy on the similar and novel table-top views with one sensor effect "
+        "switched off (train and test re-captured, lighter protocol: 6 yaws, one elevation, "
+        "lying too); `none` switches nothing off.",
+        "",
+        "| effect switched off | " + " | ".join(names) + " |",
+        "|---|" + "---|" * len(names),
+    ]
+    for effect, by_name in ablation.items():
+        cells = [f"{by_name[n]['accuracy']:.3f}" if by_name[n].get("n") else "—" for n in names]
+        lines.append(f"| {effect} | " + " | ".join(cells) + " |")
+    return lines + [""]
+
+
 def write_report(
     out: Path, metrics: dict, figures: dict, subsets: dict, thesis: dict, info: dict
 ) -> Path:
@@ -144,6 +203,7 @@ def write_report(
             f"| {scene} | {m['scenes']} | {m['precision']:.3f} | {m['recall']:.3f} | "
             f"{m['merged']} | {m['split']} |"
         )
+    lines += ["", *_splits_table(metrics, thesis), *_ablation_table(metrics)]
     lines += ["", *_calibration_note(metrics), ""]
     for subset, classes in subsets.items():
         lines += [

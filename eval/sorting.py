@@ -301,7 +301,7 @@ def _run_episode(task: Task, models: PolicyModels, config: SortingEvalConfig) ->
         scene=task.scene,
         render_mode="rgb_array" if task.video else None,
         max_steps=config.steps_per_object * n_objects + 10,
-        depth_noise=config.perception.dataset.depth_noise,
+        depth_noise=config.perception.dataset.sensor,
     )
     policy = make_policy(task.policy, models, config.n_views, config.fusion)
     recorder = None

@@ -12,7 +12,7 @@ from __future__ import annotations
 import mujoco
 import numpy as np
 
-from ipbench.assets.objects import CATEGORIES, get_instance
+from ipbench.assets.objects import CATEGORIES, find_instance
 from ipbench.envs.sorting import MAX_JAW_OPENING
 
 __all__ = [
@@ -117,7 +117,7 @@ class GroundTruthSorter:
         k = min(todo, key=lambda i: (self.failures.get(i, 0) // 2, -todo[i]["center"][1]))
         self._last = k
         obj = todo[k]
-        size = get_instance(obj["category"], int(obj["instance"].rsplit("_", 1)[1])).size
+        size = find_instance(obj["instance"]).size
         yaws = grasp_yaws(obj["pose"][3:], size, round_=obj["category"] in ROUND)
         others = [o["center"] for i, o in todo.items() if i != k]
         best = clearest_yaw(obj["center"], yaws, others)

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import importlib
 import inspect
 import json
@@ -10,13 +11,15 @@ import numpy as np
 import pytest
 
 from ipbench.assets.objects import CATEGORIES
+from ipbench.eval.dataset import DatasetConfig, ViewSet, load_or_build
 from ipbench.eval.perception import (
     CONDITIONS,
+    SPLIT_TESTS,
     PerceptionEvalConfig,
     run_perception_eval,
+    split_tests,
     training_views,
 )
-from ipbench.perception.dataset import DatasetConfig, ViewSet, load_or_build
 
 TINY = DatasetConfig(
     yaw_step_deg=60.0,
@@ -32,9 +35,9 @@ TINY = DatasetConfig(
 @pytest.mark.parametrize(
     "name",
     [
-        "ipbench.perception.dataset",
+        "ipbench.eval.dataset",
         "ipbench.perception.viewset",
-        "ipbench.perception.hand_views",
+        "ipbench.eval.hand_views",
         "ipbench.eval.perception",
     ],
 )
@@ -156,8 +159,90 @@ def test_perception_eval_writes_the_report(cache, views, tmp_path):
             hand, table = m["in_hand"], m["in_hand_scene_model"]
             assert hand["n"] == table["n"] > 0
             assert 0 <= hand["accuracy"] <= 1 and 0 <= table["accuracy"] <= 1
+    splits = saved["splits"]
+    assert list(splits) == list(SPLIT_TESTS)
+    assert splits["novel"]["gp"]["n"] == 0  # v1 has one family per category: nothing novel
+    for split in ("similar", "in_hand", "clutter"):
+        for name in ("gp", "svm"):
+            m = splits[split][name]
+            assert m["n"] > 0 and 0 <= m["accuracy"] <= 1 and np.isfinite(m["log_loss"])
+    assert splits["similar"]["gp"]["accuracy"] == saved["5class"]["gp"]["accuracy"]
+    assert splits["in_hand"]["gp"]["accuracy"] == saved["5class"]["gp"]["in_hand"]["accuracy"]
+    assert "ablation" not in saved  # v1 runs no sensor ablation
     text = (tmp_path / "perception.md").read_text()
+    assert "## 5 classes on every test split" in text
     assert "## 5class" in text and "## 3class" in text and "| cluttered |" in text
     assert "In hand:" in text and "table-top model accuracy" in text
     assert (tmp_path / "confusion_5class_gp.png").stat().st_size > 1000
     assert (tmp_path / "reliability_3class.png").exists()
+
+
+def test_split_tests_follow_each_instance_split():
+    from ipbench.assets.objects import instances
+
+    by_split = {}
+    for inst in instances(catalog="v2"):
+        by_split.setdefault(inst.split, inst)
+    one = np.ones((3, 33), np.float32)
+    names = [by_split[s].name for s in ("train", "similar", "novel")]
+    labels = [CATEGORIES.index(by_split[s].category) for s in ("train", "similar", "novel")]
+    known = [True, False, False]
+    iso = ViewSet.from_views([one] * 3, labels, names, known, "isolated")
+    hand = ViewSet.from_views([one] * 3, labels, names, known, "in_hand")
+    clutter = ViewSet.from_views([one], labels[:1], names[:1], known[:1], "cluttered")
+    sets = split_tests(ViewSet.concat([iso, hand, clutter]), "v2")
+    assert list(sets) == list(SPLIT_TESTS)
+    assert list(sets["similar"].instance) == [names[1]]
+    assert list(sets["novel"].instance) == [names[2]]
+    assert sorted(sets["in_hand"].instance) == sorted(names[1:])  # never a trained instance
+    assert len(sets["clutter"]) == 1
+
+
+def test_v2_dataset_uses_the_v2_objects_and_sensor():
+    from ipbench.envs.depth_noise import STRUCTURED_LIGHT
+
+    config = DatasetConfig(env_id="ipbench/Sorting-v2", per_category=1)
+    assert config.sensor == STRUCTURED_LIGHT and config.catalog == "v2"
+    chosen = config.chosen_instances()
+    assert {(i.category, i.split) for i in chosen} == {
+        (c, s) for c in CATEGORIES for s in ("train", "similar", "novel")
+    }
+    assert len(chosen) == 15
+    assert DatasetConfig().sensor != STRUCTURED_LIGHT and DatasetConfig().catalog == "v1"
+    assert config.key() != DatasetConfig(per_category=1).key()
+    with pytest.raises(ValueError, match="valid: ipbench/Sorting-v0"):
+        DatasetConfig(env_id="ipbench/Sorting-v9")
+
+
+def test_sensor_ablation_switches_each_effect_off_in_turn(tmp_path, monkeypatch):
+    import ipbench.eval.perception as perception
+
+    seen = []
+
+    def fake_build(cache, dataset):  # records what would be captured; tiny separable data
+        seen.append(dataset)
+        rng = np.random.default_rng(len(seen))
+        views = []
+        for inst in dataset.chosen_instances():
+            label = CATEGORIES.index(inst.category)
+            for _ in range(3):  # views per instance
+                desc = rng.normal(label, 0.1, (20, 33)).astype(np.float32)
+                one = ViewSet.from_views([desc], [label], [inst.name], [inst.known], "isolated")
+                views.append(one)
+        return ViewSet.concat(views)
+
+    monkeypatch.setattr(perception, "load_or_build", fake_build)
+    config = PerceptionEvalConfig.for_env(
+        "ipbench/Sorting-v2", codebook_size=8, classifiers=("svm",)
+    )
+    config = dataclasses.replace(
+        config, dataset=dataclasses.replace(config.dataset, per_category=2)
+    )
+    assert config.ablation
+    result = perception.sensor_ablation(tmp_path, config)
+    assert list(result)[0] == "none" and len(result) >= 2
+    sensors = [d.sensor for d in seen]
+    assert len(set(map(repr, sensors))) == len(sensors)  # each run captured another sensor
+    for effect, dataset in zip(result, seen, strict=True):
+        assert dataset.yaw_step_deg == perception.ABLATION_PROTOCOL["yaw_step_deg"]
+        assert result[effect]["svm"]["n"] > 0

@@ -247,3 +247,24 @@ def test_specular_geoms(model):
 def _eroded(mask: np.ndarray, r: int = 4) -> np.ndarray:
     """Pixels of ``mask`` at least ``r`` px (Chebyshev) from its border."""
     return cv2.erode(mask.astype(np.uint8), np.ones((2 * r + 1, 2 * r + 1), np.uint8)) > 0
+
+
+def test_render_depth_from_an_offset_pose(model, data, renderer):
+    _, depth = renderer.render_rgbd(data, "down", 320, 240)
+    np.testing.assert_array_equal(renderer.render_depth(data, "down", 320, 240), depth)
+    # 7.5 cm along the camera's x axis = world +x for "down": the on-axis sphere (0.5 m deep)
+    # (centre 0.5 m deep) moves f b / z px to the left in the image.
+    k = intrinsics(model, "down", 320, 240)
+    moved = renderer.render_depth(data, "down", 320, 240, offset=(0.075, 0.0, 0.0))
+    rows = np.flatnonzero((depth < 0.6).any(axis=1))
+    centre = lambda img: np.flatnonzero(img[rows[len(rows) // 2]] < 0.6).mean()  # noqa: E731
+    assert centre(depth) - centre(moved) == pytest.approx(k.fx * 0.075 / 0.5, abs=1.0)
+    np.testing.assert_allclose(moved[moved > 0.9], 1.0, atol=1e-3)  # same orientation
+    closer = renderer.render_depth(data, "down", 320, 240, offset=(0.0, 0.0, 0.1))
+    floor = (depth > 0.99) & (closer > 0.85)  # the floor, seen from both poses
+    assert floor.sum() > 0.9 * (depth > 0.99).sum()
+    np.testing.assert_allclose(closer[floor], depth[floor] - 0.1, atol=1e-3)
+    rgb_after, depth_after = renderer.render_rgbd(data, "down", 320, 240)  # no lasting effect
+    np.testing.assert_array_equal(depth_after, depth)
+    with pytest.raises(SensorError, match="offset"):
+        renderer.render_depth(data, "down", 320, 240, offset=(0.1, 0.0))

@@ -8,6 +8,9 @@ Conventions other code can rely on:
 * a glazed (shiny) surface is a visual geom whose material has
   ``specular >= SPECULAR_THRESHOLD``; every other material has ``specular < 0.3``;
 * the body inertia is explicit (``inst.mass`` exactly), so geoms never change it;
+* a visual part with a texture (v2 catalogue) gets an RGB 2D texture ``<prefix>_tex`` (one
+  per distinct image of the instance) and a white material that maps it through the mesh's
+  texture coordinates; parts without one (every v1 part) are built exactly as before;
 * every element is named with the body name as prefix (``<name>_...``).
 """
 
@@ -54,6 +57,19 @@ def _quat(rot: np.ndarray) -> np.ndarray:
     return q
 
 
+def _add_texture(spec: mujoco.MjSpec, name: str, image: np.ndarray) -> None:
+    """An RGB 2D texture from an (H, W, 3) uint8 image (row 0 at v = 0)."""
+    img = np.ascontiguousarray(image, dtype=np.uint8)
+    tex = spec.add_texture(
+        name=name,
+        type=mujoco.mjtTexture.mjTEXTURE_2D,
+        width=img.shape[1],
+        height=img.shape[0],
+        nchannel=3,
+    )
+    tex.data = img.tobytes()
+
+
 def add_object(
     spec: mujoco.MjSpec,
     inst: ObjectInstance,
@@ -94,6 +110,7 @@ def add_object(
     i = geo.inertia
     body.fullinertia = [i[0, 0], i[1, 1], i[2, 2], i[0, 1], i[0, 2], i[1, 2]]
 
+    textures: dict[int, str] = {}  # id of an image -> its texture's name
     for part in geo.visual:
         prefix = f"{name}_{part.suffix}"
         mesh = spec.add_mesh(
@@ -102,9 +119,22 @@ def add_object(
             userface=part.faces.ravel().tolist(),
         )
         mesh.inertia = mujoco.mjtMeshInertia.mjMESH_INERTIA_SHELL
-        spec.add_material(
-            name=f"{prefix}_mat", rgba=list(part.rgba), **(_SHINY if part.shiny else _MATTE)
-        )
+        if part.texture is None:
+            spec.add_material(
+                name=f"{prefix}_mat", rgba=list(part.rgba), **(_SHINY if part.shiny else _MATTE)
+            )
+        else:
+            mesh.usertexcoord = np.asarray(part.texcoords, float).ravel().tolist()
+            texname = textures.get(id(part.texture))
+            if texname is None:
+                texname = textures[id(part.texture)] = f"{prefix}_tex"
+                _add_texture(spec, texname, part.texture)
+            material = spec.add_material(
+                name=f"{prefix}_mat",
+                rgba=[1.0, 1.0, 1.0, 1.0],
+                **(_SHINY if part.shiny else _MATTE),
+            )
+            material.textures[mujoco.mjtTextureRole.mjTEXROLE_RGB] = texname
         body.add_geom(
             name=f"{prefix}_visual",
             type=mujoco.mjtGeom.mjGEOM_MESH,

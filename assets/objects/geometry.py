@@ -32,13 +32,20 @@ RING_SEGMENTS = 16
 
 @dataclass(frozen=True, eq=False)
 class VisualPart:
-    """One visual mesh: ``vertices`` (N, 3) m in the object frame, ``faces`` (M, 3) int."""
+    """One visual mesh: ``vertices`` (N, 3) m in the object frame, ``faces`` (M, 3) int.
+
+    v2 parts may carry a texture: ``texcoords`` (N, 2) per-vertex (u, v) in [0, 1] and
+    ``texture`` an (H, W, 3) uint8 RGB image (row 0 is v = 0); the material is then white
+    so that the texture shows its own colours. v1 parts have neither.
+    """
 
     suffix: str
     vertices: np.ndarray
     faces: np.ndarray
     rgba: tuple[float, float, float, float]
     shiny: bool
+    texcoords: np.ndarray | None = None
+    texture: np.ndarray | None = None
 
 
 @dataclass(frozen=True, eq=False)
@@ -290,6 +297,11 @@ def object_geometry(inst: ObjectInstance) -> ObjectGeometry:
     The inertia assumes the collision primitives filled with uniform (relative) density,
     scaled so that the mass is exactly ``inst.mass``.
     """
-    visual, collision = _BUILDERS[type(inst.shape)](inst.shape, inst)
+    if inst.catalog == "v1":
+        visual, collision = _BUILDERS[type(inst.shape)](inst.shape, inst)
+    else:
+        from ipbench.assets.objects.family_geometry import family_parts  # imports this module
+
+        visual, collision = family_parts(inst)
     com, inertia = _inertia(collision, inst.mass)
     return ObjectGeometry(tuple(visual), tuple(collision), com, inertia)

@@ -7,16 +7,17 @@ by the table-top segmentation; a model trained on table-top views alone labels s
 unseen instances right only about two times in three (``ipbench eval perception``). These views
 train the in-hand model.
 
-The capture rig is the benchmark environment itself (``ipbench/Sorting-v1`` reset with a
-one-object layout): the object stands alone at the centre of the spawn area in each resting
-pose the scenes use (upright; on its side when it can lie), the gripper picks it across its
-narrower side at its bounding-box grasp point (the rig knows where it put the object, as an
-operator would), presents it to the wrist camera and turns it by ``in_hand_turn_deg`` between
-``in_hand_views`` views. The wrist turns through about 180 deg, so each pose is captured from
-``in_hand_placements`` grasps, the object put down turned by 360 deg / ``in_hand_placements``
-between them, to show every side. Skills, camera, depth noise and in-hand segmentation (with
-the gripper pose from the joint positions) are those of an inspection during an episode. A
-capture stops early when the object slips out or the wrist cannot turn further.
+The capture rig is the benchmark environment itself (the dataset's ``env_id``, by default
+``ipbench/Sorting-v1``, reset with a one-object layout): the object stands alone at the
+centre of the spawn area in each resting pose the scenes use (upright; on its side when it
+can lie), the gripper picks it across its narrower side at its bounding-box grasp point (the
+rig knows where it put the object, as an operator would), presents it to the wrist camera and
+turns it by ``in_hand_turn_deg`` between ``in_hand_views`` views. The wrist turns through
+about 180 deg, so each pose is captured from ``in_hand_placements`` grasps, the object put
+down turned by 360 deg / ``in_hand_placements`` between them, to show every side. Skills,
+camera, depth noise and in-hand segmentation (with the gripper pose from the joint positions)
+are those of an inspection during an episode. A capture stops early when the object slips out
+or the wrist cannot turn further.
 """
 
 from __future__ import annotations
@@ -39,7 +40,7 @@ from ipbench.policies.kinematics import HandKinematics
 from ipbench.policies.scripted import ROUND, grasp_point, grasp_yaws, jaw_span
 
 if TYPE_CHECKING:
-    from ipbench.perception.dataset import DatasetConfig
+    from ipbench.eval.dataset import DatasetConfig
 
 __all__ = ["HAND_POSES", "render_in_hand_views"]
 
@@ -76,7 +77,7 @@ def render_in_hand_views(inst: ObjectInstance, config: DatasetConfig) -> ViewSet
     if config.in_hand_views < 1:
         return ViewSet.from_views([], [], [], [], "in_hand")
     kinematics = HandKinematics()
-    env = gym.make("ipbench/Sorting-v1", depth_noise=config.depth_noise)
+    env = gym.make(config.env_id, depth_noise=config.sensor)
     try:
         for pose_name in HAND_POSES:
             for placement in range(config.in_hand_placements):

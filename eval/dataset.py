@@ -8,10 +8,14 @@ prism and clustering; the largest segment's FPFH descriptors are stored (not yet
 the codebook can be refitted). *Known* instances make the training set, *unknown* ones the
 test set; segments cut out of cluttered scenes, labelled by their overlap with the
 ground-truth masks, make the realistic test set. Each instance is also picked up and turned in
-front of the wrist camera (:mod:`ipbench.perception.hand_views`): the in-hand views.
+front of the wrist camera (:mod:`ipbench.eval.hand_views`): the in-hand views.
 
-This module renders with the simulator (it produces data, like a capture rig); perception
-itself never reads simulator state. Results are cached on disk under a hash of the
+The objects and the sensor are those of ``DatasetConfig.env_id``: for ``ipbench/Sorting-v2`` the
+v2 catalogue (its *train* split is known; *similar* and *novel* are held out) and the
+structured-light sensor, with one sensor unit (systematic error) per instance's capture.
+
+This is an eval module: it renders with the simulator (it produces data, like a capture
+rig); perception itself never reads simulator state. Results are cached on disk under a hash of the
 configuration; a missing, stale or corrupt cache file is rebuilt with a message.
 """
 
@@ -36,17 +40,24 @@ from ipbench.assets.objects import (
     instances,
     resting_poses,
 )
+from ipbench.envs import env_config
 from ipbench.envs.depth_noise import DepthNoiseConfig, DepthNoiseModel
 from ipbench.envs.ik import look_at_rotation
 from ipbench.envs.layout import Layout, PlacedObject
 from ipbench.envs.robot import RobotController, ik_model
-from ipbench.envs.sensors import SensorRenderer, camera_pose, intrinsics, specular_geoms
+from ipbench.envs.sensors import (
+    SensorRenderer,
+    camera_pose,
+    intrinsics,
+    observe_depth,
+    specular_geoms,
+)
 from ipbench.envs.skills import Skills
 from ipbench.envs.sorting import WRIST_CAMERA, WRIST_SIZE
 from ipbench.envs.world import Places, build_world
+from ipbench.eval.hand_views import render_in_hand_views
 from ipbench.perception.cloud import PerceptionError, depth_to_points
 from ipbench.perception.features import FeatureConfig, fpfh
-from ipbench.perception.hand_views import render_in_hand_views
 from ipbench.perception.segmentation import SegmentationConfig, segment_scene
 from ipbench.perception.viewset import ViewSet
 
@@ -81,12 +92,16 @@ class DatasetConfig:
         ``per_category`` unknown instances of each category (for quick runs and tests).
     min_overlap : a cluttered segment is labelled with the object that covers at least this
         fraction of its pixels; segments without such an object (merged ones) are dropped.
-    in_hand_views : in-hand views per grasp (:mod:`ipbench.perception.hand_views`); 0 skips
+    in_hand_views : in-hand views per grasp (:mod:`ipbench.eval.hand_views`); 0 skips
         them.
     in_hand_turn_deg : rotation of the object in hand between those views (deg; thesis: 30).
     in_hand_placements : grasps per resting pose, the object turned on the table by 360 deg /
         this between them (the wrist alone turns through about 180 deg).
-    depth_noise, segmentation, features : the sensor and perception settings.
+    env_id : the environment whose objects (catalogue) and sensor are captured; its
+        cluttered scene gives the cluttered segments (``ipbench/Sorting-v1``: the v1 catalogue
+        and cluttered segments of ``SortingCluttered-v0``, as before v2).
+    depth_noise : the sensor; ``None``: the env's own (:attr:`sensor`).
+    segmentation, features : the perception settings.
     """
 
     yaw_step_deg: float = 20.0
@@ -100,7 +115,8 @@ class DatasetConfig:
     in_hand_views: int = 6
     in_hand_turn_deg: float = 30.0
     in_hand_placements: int = 2
-    depth_noise: DepthNoiseConfig = field(default_factory=DepthNoiseConfig)
+    env_id: str = "ipbench/Sorting-v1"
+    depth_noise: DepthNoiseConfig | None = None
     segmentation: SegmentationConfig = field(default_factory=SegmentationConfig)
     features: FeatureConfig = field(default_factory=FeatureConfig)
 
@@ -113,10 +129,45 @@ class DatasetConfig:
             )
         if self.yaw_step_deg <= 0 or self.distance <= 0:
             raise ValueError("yaw_step_deg and distance must be positive")
+        env_config(self.env_id)  # an unknown id is an error listing the valid ones
+
+    @property
+    def sensor(self) -> DepthNoiseConfig:
+        """The depth sensor the views are captured with."""
+        return self.depth_noise or env_config(self.env_id).depth_noise
+
+    @property
+    def catalog(self) -> str:
+        """The object catalogue of :attr:`env_id`."""
+        return env_config(self.env_id).catalog
+
+    def chosen_instances(self) -> tuple[ObjectInstance, ...]:
+        """The instances captured: the whole catalogue, or with ``per_category`` the first
+        ``per_category`` of each category and split."""
+        every = instances(catalog=self.catalog)
+        if self.per_category is None:
+            return every
+        if self.catalog == "v1":  # first known and first unknown ones (as before v2)
+            return tuple(
+                i
+                for i in every
+                if (i.index % KNOWN_INSTANCES if not i.known else i.index) < self.per_category
+            )
+        seen: dict[tuple[str, str], int] = {}
+        chosen = []
+        for inst in every:
+            n = seen.get((inst.category, inst.split), 0)
+            if n < self.per_category:
+                chosen.append(inst)
+            seen[inst.category, inst.split] = n + 1
+        return tuple(chosen)
 
     def key(self) -> str:
-        """Hash of everything that changes the data (the cache key)."""
-        text = json.dumps({"v": DATASET_VERSION, **asdict(self)}, sort_keys=True, default=str)
+        """Hash of everything that changes the data (the cache key): the protocol, and the
+        objects (every instance's dimensions, mass, family and split)."""
+        objects = hashlib.sha256(repr(instances(catalog=self.catalog)).encode()).hexdigest()
+        fields = {"v": DATASET_VERSION, "objects": objects, **asdict(self)}
+        text = json.dumps(fields, sort_keys=True, default=str)
         return hashlib.sha256(text.encode()).hexdigest()[:16]
 
 
@@ -154,8 +205,10 @@ def render_instance_views(inst: ObjectInstance, config: DatasetConfig) -> ViewSe
         dict(zip(skills.ready.joints, skills.tool_pose(park[:2], park[2], 0.0).qpos, strict=True))
     )
     renderer = SensorRenderer(model)
-    noise = DepthNoiseModel(config.depth_noise)
+    noise = DepthNoiseModel(config.sensor)
     rng = np.random.default_rng([config.seed, inst.index, CATEGORIES.index(inst.category)])
+    # one sensor unit per capture session (its own stream: v1's noise draws stay as they were)
+    unit = noise.draw_unit(np.random.default_rng([config.seed, inst.index, 7500]))
     h, w = WRIST_SIZE
     k = intrinsics(model, WRIST_CAMERA, w, h)
     shiny = np.append(specular_geoms(model), False)  # index -1 = background
@@ -186,7 +239,9 @@ def render_instance_views(inst: ObjectInstance, config: DatasetConfig) -> ViewSe
             robot.teleport(camera_q[elevation])  # also runs mj_forward
             rgb, depth = renderer.render_rgbd(data, WRIST_CAMERA, w, h)
             seg = renderer.render_segmentation(data, WRIST_CAMERA, w, h)
-            depth = noise.apply(depth, k.fx, k.fy, rng, specular=shiny[seg])
+            depth = observe_depth(
+                renderer, noise, data, WRIST_CAMERA, depth, k, rng, shiny[seg], unit
+            )
             pose_cw = camera_pose(model, data, WRIST_CAMERA)
             cloud = depth_to_points(depth, k.K, pose_cw)
             try:
@@ -212,7 +267,10 @@ def render_cluttered_segments(config: DatasetConfig, progress: bool = True) -> V
 
     import ipbench.envs  # noqa: F401
 
-    env = gym.make("ipbench/SortingCluttered-v0", depth_noise=config.depth_noise)
+    if config.env_id == "ipbench/Sorting-v1":  # as before v2
+        env = gym.make("ipbench/SortingCluttered-v0", depth_noise=config.sensor)
+    else:
+        env = gym.make(config.env_id, scene="cluttered", depth_noise=config.sensor)
     descriptors, labels, names, known = [], [], [], []
     try:
         for seed in tqdm(config.cluttered_seeds, desc="cluttered scenes", disable=not progress):
@@ -305,12 +363,7 @@ def load_or_build(
             path.unlink()
     parts_dir = cache_dir / f"parts-{config.key()}"
     parts_dir.mkdir(exist_ok=True)
-    chosen = [
-        inst
-        for inst in instances()
-        if config.per_category is None
-        or (inst.index % KNOWN_INSTANCES if not inst.known else inst.index) < config.per_category
-    ]
+    chosen = config.chosen_instances()
     kinds = [k for k in _RENDERERS if k != "in_hand" or config.in_hand_views > 0]
     jobs = [(kind, inst) for inst in chosen for kind in kinds]
     parts: dict[tuple[str, str], ViewSet] = {}

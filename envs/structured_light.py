@@ -1,0 +1,283 @@
+"""Projector shadow, disparity-domain block matching and per-unit error of a Kinect v1 / Xtion.
+
+Used by :class:`ipbench.envs.depth_noise.DepthNoiseModel` (switches and numbers live in its
+``DepthNoiseConfig``); all randomness comes from the caller's ``numpy.random.Generator``.
+
+**Geometry.** The IR projector sits ``b = 0.075`` m beside the IR camera along the camera's x
+axis (Khoshelham & Oude Elberink 2012; ROS ``kinect_calibration/technical``), on its +x side
+(OpenCV frame: the sensor's right, the viewer's left when facing it; iFixit / ROS photos of the
+Kinect: projector, RGB, IR camera from the viewer's left), so shadows fall on the left of
+objects in the image. A point at depth ``z`` seen at camera pixel ``(u, v)`` is at projector
+pixel ``(u - s d, v)`` with disparity ``d = f b / z`` and ``s = +1`` (``-1``: projector on -x).
+
+**Projector shadow** (:func:`projector_lit`; BlenSor / render_kinect occlusion by the projector
+offset): shadow mapping against a depth image rendered from the projector's pose with the same
+intrinsics; a camera pixel is lit if the projector's depth at ``(u - s d, v)`` (nearest pixel)
+is not nearer than ``z (1 - tolerance)``. The shadow beside an occluder is
+``f b (1 / z_fg - 1 / z_bg)`` px wide. Rays leaving the projector image count as lit (the real
+projector's field covers the camera's).
+
+**Block matching** (:class:`BlockMatcher`; 9x9 correlation window: ROS
+``kinect_calibration/technical``, simkinect, Landau et al.). A binary dot pattern fixed in
+projector coordinates (one dot at a seeded random position in every 3x3 px cell, ~1/9 of the
+pixels: the same on every unit, like the diffractive element) is seen at camera pixel
+``(u, v)`` if the pattern has a dot at ``(u - s d, v)``. A dot's weight is its IR intensity,
+``~ 1 / z^2`` (inverse square law, i.e. ``~ d^2``). A pixel is on the *near* class if its
+disparity is within ``tol`` of the largest disparity in its 17x17 neighbourhood (which holds
+every 9x9 window containing it); ``tol = surface_tol_px + 8 sqrt(2) d (tan(theta) +
+sin(beta)) / f`` px, the span of a plane's disparity over 8 px at incidence ``theta`` and ray
+angle ``beta``, so tilted planes stay one surface. In each 9x9 window the class with the larger
+weighted dot sum wins; the pixel is lost if the window holds fewer than ``min_dots`` seen dots
+or the winner less than ``match_fraction`` (2/3: its correlation peak must carry twice the dot
+energy of the rest; simkinect's stricter ``n_valid > n_total / 1.2`` leaves ~7 px hole bands
+at every edge) of the weighted dots, or if the pixel itself has no return. Otherwise its
+disparity is the winner's weighted mean. So edges fatten towards the nearer, brighter surface
+by 1-2 px where it dominates the window, corners round (a quarter window never dominates), a
+1-3 px band at each depth edge is lost, and parts narrower than ~4 px vanish into the
+background (3/9 of a window never wins).
+
+**Disparity noise** (Barron & Malik 2013 / ICL-NUIM style, :func:`disparity_noise`): Gaussian
+in disparity, correlated over the 9x9 window (box-filtered white noise rescaled to unit std),
+with ``sigma_d^2 = (sigma_z f b / z^2)^2 - q^2 / 12``: Nguyen et al. 2012 measured the
+sensor's *output*, which already holds the ``q = 1/8`` px quantisation (uniform error, variance
+``q^2 / 12``), so that part is subtracted before the output is quantised again (0 if
+negative). Then disparity is rounded to ``q`` and ``z = f b / d``.
+
+**Per-unit error** (:class:`UnitError`): a depth scale and offset, ``z' = z (1 + scale) +
+offset``, and a whole-pixel shift of depth relative to RGB, drawn once per sensor unit.
+"""
+
+from __future__ import annotations
+
+import functools
+import math
+from dataclasses import dataclass
+from types import SimpleNamespace
+
+import cv2
+import numpy as np
+
+__all__ = [
+    "BlockMatcher",
+    "UnitError",
+    "apply_unit",
+    "disparity",
+    "disparity_noise",
+    "dot_pattern",
+    "draw_unit_error",
+    "projector_lit",
+]
+
+
+@dataclass(frozen=True)
+class UnitError:
+    """Systematic error of one sensor unit, constant over an episode.
+
+    ``depth_scale`` (fraction) and ``depth_offset_m`` (m): ``z' = z (1 + depth_scale) +
+    depth_offset_m``. ``shift_px`` (px, ``(dx, dy)``): the depth image's content moves ``dx``
+    px right and ``dy`` px down relative to the RGB image (uncovered pixels: missing).
+    """
+
+    depth_scale: float = 0.0
+    depth_offset_m: float = 0.0
+    shift_px: tuple[int, int] = (0, 0)
+
+
+def draw_unit_error(
+    rng: np.random.Generator, scale_max: float, offset_max_m: float, shift_max_px: int
+) -> UnitError:
+    """A :class:`UnitError` uniform in ``[-scale_max, scale_max]``, ``[-offset_max_m,
+    offset_max_m]`` m and integer ``[-shift_max_px, shift_max_px]`` px per axis (4 draws)."""
+    s, o = rng.uniform(-1.0, 1.0, size=2)
+    dx, dy = rng.integers(-shift_max_px, shift_max_px, size=2, endpoint=True)
+    return UnitError(float(s * scale_max), float(o * offset_max_m), (int(dx), int(dy)))
+
+
+def apply_unit(depth: np.ndarray, unit: UnitError) -> np.ndarray:
+    """``depth`` (H, W) float32 m, 0 = missing, with ``unit``'s error (in place if unshifted)."""
+    if unit.depth_scale != 0.0 or unit.depth_offset_m != 0.0:
+        valid = np.greater(depth, 0).view(np.uint8)
+        depth *= np.float32(1.0 + unit.depth_scale)
+        cv2.add(depth, unit.depth_offset_m, dst=depth, mask=valid)
+        cv2.threshold(depth, 0, 0, cv2.THRESH_TOZERO, dst=depth)  # negative -> 0 (missing)
+    dx, dy = unit.shift_px
+    if dx == 0 and dy == 0:
+        return depth
+    h, w = depth.shape
+    out = np.zeros_like(depth)
+    if abs(dx) < w and abs(dy) < h:
+        out[max(dy, 0) : h + min(dy, 0), max(dx, 0) : w + min(dx, 0)] = depth[
+            max(-dy, 0) : h + min(-dy, 0), max(-dx, 0) : w + min(-dx, 0)
+        ]
+    return out
+
+
+@functools.lru_cache(maxsize=4)
+def _grid(shape: tuple[int, int]) -> tuple[np.ndarray, np.ndarray]:
+    """(H, W) float32 column and row index maps."""
+    h, w = shape
+    u = np.ascontiguousarray(np.broadcast_to(np.arange(w, dtype=np.float32), (h, w)))
+    v = np.ascontiguousarray(np.broadcast_to(np.arange(h, dtype=np.float32)[:, None], (h, w)))
+    return u, v
+
+
+@functools.lru_cache(maxsize=4)
+def dot_pattern(shape: tuple[int, int], cell_px: int = 3, seed: int = 0) -> np.ndarray:
+    """(H, W) float32 0/1 projector pattern: one dot per ``cell_px`` square cell, at a position
+    drawn from ``seed`` (a device constant, not per-frame randomness); it tiles periodically."""
+    h, w = shape
+    ch, cw = -(-h // cell_px), -(-w // cell_px)
+    rng = np.random.default_rng(seed)
+    pos = rng.integers(0, cell_px, size=(2, ch, cw))
+    pattern = np.zeros((ch * cell_px, cw * cell_px), np.float32)
+    rows = np.arange(ch)[:, None] * cell_px + pos[0]
+    cols = np.arange(cw)[None, :] * cell_px + pos[1]
+    pattern[rows, cols] = 1.0
+    return np.ascontiguousarray(pattern[:h, :w])
+
+
+def disparity(fb: float, depth: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
+    """(H, W) float32 ``fb / depth`` (px for ``fb = f b``), 0 where ``depth`` is 0."""
+    with np.errstate(divide="ignore"):
+        out = np.divide(np.float32(fb), depth, out=out)
+    return cv2.threshold(out, 1e30, 0, cv2.THRESH_TOZERO_INV, dst=out)[1]  # inf -> 0
+
+
+def projector_lit(
+    depth: np.ndarray,
+    projector_depth: np.ndarray,
+    fx: float,
+    baseline_m: float,
+    tolerance: float = 0.01,
+) -> np.ndarray:
+    """(H, W) bool: pixels the projector lights (module docstring; shadow mapping).
+
+    ``depth``, ``projector_depth``: (H, W) float32 z-depth (m, 0 = nothing) from the camera and
+    from the projector (same intrinsics, ``baseline_m`` along the camera's x axis, signed);
+    ``fx`` in px; ``tolerance``: relative depth margin (shadow-map bias).
+    """
+    u, v = _grid(depth.shape)
+    map_x = np.subtract(u, disparity(fx * baseline_m, depth), dtype=np.float32)  # u - s d
+    seen = cv2.remap(projector_depth, map_x, v, cv2.INTER_NEAREST, borderValue=0.0)
+    lit = np.greater_equal(seen, depth * np.float32(1.0 - tolerance))
+    lit |= seen <= 0
+    return lit
+
+
+def disparity_noise(
+    random_bytes: np.ndarray,
+    sigma_z: np.ndarray,
+    disparity: np.ndarray,
+    fb: float,
+    step_px: float,
+    k: int,
+    out: np.ndarray | None = None,
+) -> np.ndarray:
+    """(H, W) float32 disparity noise (px), correlated over a ``k`` x ``k`` window.
+
+    ``random_bytes``: (H, W) uint8 uniform random bytes; their window sums, standardised, are
+    the unit-variance correlated field (a sum of ``k^2`` = 81 uniform terms: Gaussian for all
+    purposes here, and one box filter instead of a Gaussian draw per pixel). ``sigma_z``:
+    Nguyen's axial std (m) per pixel; ``disparity``: ``f b / z`` (px); ``fb``: ``f b`` (px m);
+    ``step_px``: quantisation step (px, 0: none).
+    ``sigma_d = sqrt(max((sigma_z d^2 / (f b))^2 - step^2 / 12, 0))``.
+    """
+    field = cv2.boxFilter(random_bytes, cv2.CV_32F, (k, k), dst=out, normalize=False)
+    mean, std = k * k * 127.5, k * math.sqrt((256**2 - 1) / 12.0)  # of a sum of k^2 bytes
+    field -= np.float32(mean)
+    field *= np.float32(1.0 / std)
+    sd = cv2.multiply(disparity, disparity, scale=1.0 / fb)
+    sd *= sigma_z
+    sd *= sd
+    sd -= np.float32(step_px**2 / 12.0)
+    np.maximum(sd, 0, out=sd)
+    field *= cv2.sqrt(sd, dst=sd)
+    return field
+
+
+class BlockMatcher:
+    """Vectorised 9x9 block matching of disparity images (module docstring); reuses buffers."""
+
+    def __init__(
+        self,
+        window_px: int = 9,
+        cell_px: int = 3,
+        seed: int = 0,
+        min_dots: int = 4,
+        match_fraction: float = 2.0 / 3.0,
+        surface_tol_px: float = 1.0,
+    ) -> None:
+        self.window_px, self.cell_px, self.seed = window_px, cell_px, seed
+        self.min_dots, self.match_fraction, self.surface_tol_px = (
+            min_dots,
+            match_fraction,
+            surface_tol_px,
+        )
+        self._kernel = np.ones((window_px, window_px), np.uint8)
+        self._ws: SimpleNamespace | None = None
+
+    def match(
+        self, disparity: np.ndarray, slope: np.ndarray, sign: int = 1
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """(matched disparity (px), lost (bool)), both (H, W), valid until the next call.
+
+        ``disparity``: (H, W) float32 ``f b / z`` (px, 0 = no return); ``slope``: (H, W)
+        float32 ``8 sqrt(2) |grad d|`` bound (px) added to the surface tolerance (overwritten);
+        ``sign``: projector side (+1: +x).
+        """
+        d, (h, w) = disparity, disparity.shape
+        if self._ws is None or self._ws.shape != (h, w):
+            kinds = "w wn wd wnd dots a b c".split()
+            self._ws = SimpleNamespace(
+                shape=(h, w), **{k: np.empty((h, w), np.float32) for k in kinds}
+            )
+            self._ws.near = np.empty((h, w), bool)
+            self._ws.single = np.empty((h, w), bool)
+            self._ws.near2 = np.empty((h, w), bool)
+            self._ws.lost = np.empty((h, w), bool)
+        ws, k = self._ws, (self.window_px, self.window_px)
+        u, v = _grid((h, w))
+        # Dots seen: pattern at projector column u - s d (nearest), weight ~ 1 / z^2 ~ d^2.
+        map_x = cv2.scaleAdd(d, float(-sign), u, dst=ws.a)
+        dots = cv2.remap(
+            dot_pattern((h, w), self.cell_px, self.seed),
+            map_x,
+            v,
+            cv2.INTER_NEAREST,
+            dst=ws.dots,
+            borderMode=cv2.BORDER_WRAP,
+        )
+        wgt = cv2.multiply(d, d, dst=ws.w)  # 0 where there is no return
+        wgt *= dots
+        # Near class: within tol of the largest disparity of the 17x17 neighbourhood (two 9x9
+        # dilations); a window whose own disparity span is within tol is one surface.
+        slope += np.float32(self.surface_tol_px)
+        dmax9 = cv2.dilate(d, self._kernel, dst=ws.a)
+        inv = cv2.dilate(cv2.divide(1.0, d, dst=ws.b), self._kernel, dst=ws.b)  # 1 / valid min
+        span = cv2.subtract(dmax9, cv2.divide(1.0, inv, dst=ws.b), dst=ws.b)
+        single = np.less_equal(span, slope, out=ws.single).view(np.uint8)
+        dmax17 = cv2.dilate(dmax9, self._kernel, dst=ws.a)
+        dmax17 -= slope
+        near = np.greater_equal(d, dmax17, out=ws.near)
+        wn = np.multiply(wgt, near, out=ws.wn)
+        wd = cv2.multiply(wgt, d, dst=ws.wd)
+        wnd = cv2.multiply(wn, d, dst=ws.wnd)
+        for buf in (wgt, wn, wd, wnd):  # window sums
+            cv2.boxFilter(buf, -1, k, dst=buf, normalize=False)
+        # Winner: the class with more dot energy (far class = total - near); a single-surface
+        # window's winner is the whole window.
+        cv2.copyTo(wgt, single, dst=wn)
+        wf = np.subtract(wgt, wn, out=ws.a)
+        near_wins = np.greater_equal(wn, wf, out=ws.near)
+        win = np.maximum(wn, wf, out=ws.b)
+        lost = np.less(win, wgt * np.float32(self.match_fraction), out=ws.lost)
+        # Too few dots: less energy than min_dots dots at the pixel's own disparity.
+        lost |= np.less(wgt, cv2.multiply(d, d, scale=self.min_dots - 0.5, dst=ws.c), out=ws.near2)
+        lost |= d <= 0
+        # Winner's weighted mean disparity.
+        cv2.copyTo(wd, single, dst=wnd)
+        np.subtract(wd, wnd, out=wd)  # far class sum
+        cv2.copyTo(wnd, near_wins.view(np.uint8), dst=wd)
+        np.maximum(win, np.float32(1e-12), out=win)
+        out = np.divide(wd, win, out=ws.c)
+        return out, lost
