@@ -1,7 +1,7 @@
 """``ipbench figures``: the README's pictures of an env id's objects and sensor, made anew.
 
 - :func:`family_gallery`: one instance of every family of every category (first instance of
-  each family), standing in rows on the work table — one row per category, in bin order —
+  each family), standing in rows on the work table — one row per category, in bin order (juice bottles farthest from the camera) —
   rendered by the env itself (a hand-made layout, ``reset(options={"layout": ...})``).
 - :func:`depth_figure`: a cluttered scene from the wrist Xtion: RGB, the ideal depth the
   renderer returns and what the sensor model makes of it (missing depth in black).
@@ -31,7 +31,7 @@ from ipbench.envs.sorting import WRIST_CAMERA, WRIST_SIZE, workcell_places  # no
 __all__ = ["family_gallery", "depth_figure", "gallery_layout"]
 
 _SPACING = 0.2  # m between neighbours of a gallery row
-_ROW = 0.21  # m between rows
+_ROW = 0.17  # m between rows
 
 
 def gallery_layout(catalog: str) -> Layout:
@@ -40,7 +40,7 @@ def gallery_layout(catalog: str) -> Layout:
     for inst in instances(catalog=catalog):
         firsts.setdefault((inst.category, inst.family), inst)
     places = workcell_places()
-    cx, cy, _ = places.spawn_area.center
+    cx, cy, _ = places.table_top.center
     placed = []
     for row, category in enumerate(CATEGORIES):
         row_insts = [i for (c, _), i in firsts.items() if c == category]
@@ -73,7 +73,7 @@ def family_gallery(path: Path, env_id: str = "ipbench/Sorting-v2", size=(720, 12
         center = np.mean([base.data.xpos[b] for b in base.world.object_bodies], axis=0)
         renderer = mujoco.Renderer(base.model, *size)
         try:
-            renderer.update_scene(base.data, _free_camera(center, 1.9, 180.0, -38.0))
+            renderer.update_scene(base.data, _free_camera(center, 1.45, 180.0, -40.0))
             image = renderer.render()
         finally:
             renderer.close()
@@ -98,7 +98,7 @@ def depth_figure(path: Path, env_id: str = "ipbench/Sorting-v2", seed: int = 0) 
         env.close()
     noisy = obs["wrist_depth"]
     valid = ideal[ideal > 0]
-    lo, hi = float(np.percentile(valid, 1)), float(np.percentile(valid, 99))
+    lo, hi = float(np.percentile(valid, 1)), float(np.percentile(valid, 60))  # the table
     fig, axes = plt.subplots(1, 3, figsize=(15, 4.2), dpi=100)
     panels = [
         (obs["wrist_rgb"], "wrist RGB"),

@@ -61,3 +61,27 @@ def test_demo_writes_summary_and_video(tmp_path):
     assert saved["uncluttered"]["steps"] == 2 and saved["uncluttered"]["objects"] == 10
     reader = imageio.get_reader(tmp_path / "demo_uncluttered.mp4")
     assert reader.get_data(0).shape == (480, 640, 3)
+
+
+def test_unknown_env_id_is_rejected_with_the_valid_ids(tmp_path):
+    for argv in (
+        ["eval", "perception", "--env", "ipbench/Sorting-v9", "--out", str(tmp_path)],
+        ["bench", "sim", "--env", "ipbench/Kitchen-v0"],
+        ["figures", "--env", "Sorting-v2", "--out", str(tmp_path)],
+    ):
+        with pytest.raises(SystemExit, match="valid: ipbench/Sorting-v0.*ipbench/Sorting-v2"):
+            main(argv)
+    assert not any(tmp_path.iterdir())  # nothing written
+
+
+def test_gallery_shows_every_family_once_on_the_table():
+    from ipbench.assets.objects import FAMILIES
+    from ipbench.envs.sorting import workcell_places
+    from ipbench.eval.figures import gallery_layout
+
+    layout = gallery_layout("v2")
+    shown = [(o.instance.category, o.instance.family) for o in layout.objects]
+    assert sorted(shown) == sorted((c, f) for c, fs in FAMILIES.items() for f in fs)
+    table = workcell_places().table_top
+    for o in layout.objects:
+        assert np.all(np.abs(np.asarray(o.position[:2]) - table.center[:2]) < table.half[:2])

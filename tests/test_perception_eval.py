@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import dataclasses
 import importlib
 import inspect
 import json
@@ -234,9 +233,6 @@ def test_sensor_ablation_switches_each_effect_off_in_turn(tmp_path, monkeypatch)
     monkeypatch.setattr(perception, "load_or_build", fake_build)
     config = PerceptionEvalConfig.for_env(
         "ipbench/Sorting-v2", codebook_size=8, classifiers=("svm",)
-    )
-    config = dataclasses.replace(
-        config, dataset=dataclasses.replace(config.dataset, per_category=2)
     )
     assert config.ablation
     result = perception.sensor_ablation(tmp_path, config)
