@@ -20,7 +20,7 @@ from dataclasses import dataclass
 import mujoco
 import numpy as np
 
-from .depth_noise import DepthNoiseModel, SensorError, UnitError
+from .depth_noise import DepthNoiseModel, SensorError
 
 __all__ = [
     "CameraIntrinsics",
@@ -30,7 +30,6 @@ __all__ = [
     "camera_id",
     "camera_pose",
     "intrinsics",
-    "observe_depth",
     "specular_geoms",
 ]
 
@@ -313,30 +312,6 @@ class SensorRenderer:
             missing |= depth > 0.99 * _SKYBOX_RADIUS * zfar * cos_corner * facets
         np.copyto(depth, 0, where=missing)
         return depth
-
-
-def observe_depth(
-    renderer: SensorRenderer,
-    noise: DepthNoiseModel,
-    data: mujoco.MjData,
-    camera: Camera,
-    depth: np.ndarray,
-    k: CameraIntrinsics,
-    rng: np.random.Generator,
-    specular: np.ndarray | None = None,
-    unit: UnitError | None = None,
-) -> np.ndarray:
-    """What the sensor returns for the ideal ``depth`` (H, W) float32 m of ``camera``: the
-    noise model applied, with the projector's depth rendered when the model needs it and this
-    episode's ``unit`` error. ``k``: the image's intrinsics; ``specular``: (H, W) bool mask."""
-    extra: dict = {}
-    if noise.needs_projector_depth:
-        extra["projector_depth"] = renderer.render_depth(
-            data, camera, k.width, k.height, offset=noise.projector_offset
-        )
-    if unit is not None:
-        extra["unit"] = unit
-    return noise.apply(depth, k.fx, k.fy, rng, specular=specular, **extra)
 
 
 class RgbdCamera:

@@ -68,7 +68,6 @@ from ipbench.envs.sensors import (
     SensorRenderer,
     camera_pose,
     intrinsics,
-    observe_depth,
     specular_geoms,
 )
 from ipbench.envs.skills import SkillConfig, SkillResult, Skills
@@ -515,8 +514,8 @@ class SortingEnv(gym.Env):
         self._wrist_seg = seg
         k_wrist = intrinsics(m, WRIST_CAMERA, w, h)
         specular = self._specular_geoms[seg] if self._noise.uses_specular else None
-        depth = observe_depth(
-            r, self._noise, d, WRIST_CAMERA, depth, k_wrist, self.np_random, specular, self._unit
+        depth = self._noise.apply(
+            depth, k_wrist.fx, k_wrist.fy, self.np_random, specular=specular, unit=self._unit
         )
         hh, hw = self.config.head_size
         obs = {

@@ -66,6 +66,7 @@ __all__ = [
     "dot_pattern",
     "draw_unit_error",
     "projector_lit",
+    "projector_visible",
 ]
 
 
@@ -162,6 +163,39 @@ def projector_lit(
     lit = np.greater_equal(seen, depth * np.float32(1.0 - tolerance))
     lit |= seen <= 0
     return lit
+
+
+def projector_visible(
+    depth: np.ndarray, fx: float, baseline_m: float, tolerance_px: float = 0.05
+) -> np.ndarray:
+    """(H, W) bool: pixels the projector lights, from the camera's own ``depth`` (no render).
+
+    Rectified geometry: a point at pixel ``(u, v)`` with disparity ``d = f |b| / z`` is at
+    projector column ``x = u - s d`` (``s`` = sign of ``baseline_m``: +1, projector at +x).
+    Whatever hides it from the projector lies on the same projector ray, nearer, so it is
+    seen by the camera at ``u' = x + s d' `` beyond ``u`` (``u' > u`` for ``s = +1``) with
+    ``x(u') <= x(u)``: the pixel is lit iff ``x(u) < min over u' beyond u of x(u')``
+    (``- tolerance_px``), a running minimum along the row. Exact for occluders the camera
+    sees (it agrees with :func:`projector_lit`'s shadow map on rendered scenes, see the tests);
+    surfaces facing away from the projector come out shadowed, as they are. The shadow beside
+    an occluder is ``f b (1 / z_fg - 1 / z_bg)`` px wide. Pixels without depth: lit (moot).
+    """
+    s = 1 if baseline_m > 0 else -1
+    # rows reversed so that "beyond u" comes first: a running minimum from the left
+    z = np.ascontiguousarray(depth[:, ::-1] if s > 0 else depth)
+    u, _ = _grid(z.shape)
+    x = disparity(fx * abs(baseline_m), z)
+    if s > 0:
+        np.subtract(u[:, ::-1], x, out=x)  # projector column x(u) = u - d
+    else:  # mirrored: -x(u) = -(u + d), occluders at u' < u, the same test
+        np.add(u, x, out=x)
+        np.negative(x, out=x)
+    ahead = np.minimum.accumulate(x, axis=1)  # min over u' at or beyond u
+    ahead -= np.float32(tolerance_px)
+    lit = np.empty(z.shape, bool)
+    lit[:, 0] = True
+    np.less(x[:, 1:], ahead[:, :-1], out=lit[:, 1:])
+    return lit[:, ::-1] if s > 0 else lit
 
 
 def disparity_noise(

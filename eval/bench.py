@@ -4,8 +4,7 @@ Figures, for the sorting scene: physics steps/s as the environment runs them (wi
 hook) against raw ``mj_step`` of the same model; wrist RGB-D frames/s at 640x480 —
 ``rgbd_fps`` renders RGB and metric depth in one pass, ``rgbd_noisy_fps`` adds the env's own
 depth sensor model (what the environment observes; for ``ipbench/Sorting-v2`` the full
-structured-light model, including its second depth render from the projector's pose and the
-episode's unit error); head stereo pairs/s at the
+structured-light model with the episode's unit error); head stereo pairs/s at the
 default 1024x680; wall time of a pick-and-place skill; ``reset`` time. Speed targets live
 here, never in timed tests.
 """
@@ -21,7 +20,7 @@ import mujoco
 import numpy as np
 
 import ipbench.envs  # noqa: F401
-from ipbench.envs.sensors import intrinsics, observe_depth
+from ipbench.envs.sensors import intrinsics
 from ipbench.envs.sorting import WRIST_CAMERA, WRIST_SIZE
 from ipbench.policies.scripted import GroundTruthSorter
 
@@ -73,7 +72,7 @@ def bench_sim(
 
     def rgbd():
         _, depth = renderer.render_rgbd(data, WRIST_CAMERA, w, h)
-        observe_depth(renderer, base.depth_noise, data, WRIST_CAMERA, depth, k, rng, unit=unit)
+        base.depth_noise.apply(depth, k.fx, k.fy, rng, unit=unit)
 
     unit = base.depth_noise.draw_unit(rng)
     noisy_fps = _rate(rgbd, 100)

@@ -49,7 +49,6 @@ from ipbench.envs.sensors import (
     SensorRenderer,
     camera_pose,
     intrinsics,
-    observe_depth,
     specular_geoms,
 )
 from ipbench.envs.skills import Skills
@@ -239,9 +238,7 @@ def render_instance_views(inst: ObjectInstance, config: DatasetConfig) -> ViewSe
             robot.teleport(camera_q[elevation])  # also runs mj_forward
             rgb, depth = renderer.render_rgbd(data, WRIST_CAMERA, w, h)
             seg = renderer.render_segmentation(data, WRIST_CAMERA, w, h)
-            depth = observe_depth(
-                renderer, noise, data, WRIST_CAMERA, depth, k, rng, shiny[seg], unit
-            )
+            depth = noise.apply(depth, k.fx, k.fy, rng, specular=shiny[seg], unit=unit)
             pose_cw = camera_pose(model, data, WRIST_CAMERA)
             cloud = depth_to_points(depth, k.K, pose_cw)
             try:

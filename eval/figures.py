@@ -1,8 +1,9 @@
 """``ipbench figures``: the README's pictures of an env id's objects and sensor, made anew.
 
 - :func:`family_gallery`: one instance of every family of every category (first instance of
-  each family), standing in rows on the work table — one row per category, in bin order (juice bottles farthest from the camera) —
-  rendered by the env itself (a hand-made layout, ``reset(options={"layout": ...})``).
+  each family), standing in rows on the work table — one row per category, in bin order
+  (juice bottles farthest from the camera) — rendered by the env itself (a hand-made
+  layout, ``reset(options={"layout": ...})``).
 - :func:`depth_figure`: a cluttered scene from the wrist Xtion: RGB, the ideal depth the
   renderer returns and what the sensor model makes of it (missing depth in black).
 

@@ -27,6 +27,7 @@ from ipbench.envs.depth_noise import (
     without_effect,
 )
 from ipbench.envs.sensors import SensorRenderer, intrinsics
+from ipbench.envs.structured_light import projector_lit, projector_visible
 
 H, W, F, B = 480, 640, 570.0, 0.075
 U = ((np.arange(W) - (W - 1) / 2) / F)[None, :]
@@ -89,7 +90,8 @@ def shadow_scene(z_fg: float, z_bg: float) -> mujoco.MjModel:
 
 
 @pytest.mark.parametrize(("z_fg", "z_bg"), [(1.0, 1.2), (0.6, 1.2), (0.8, 0.9)])
-def test_shadow_width_matches_geometry(z_fg, z_bg):
+@pytest.mark.parametrize("method", ["shadow_map", "scanline"])
+def test_shadow_width_matches_geometry(z_fg, z_bg, method):
     model = shadow_scene(z_fg, z_bg)
     data = mujoco.MjData(model)
     mujoco.mj_forward(model, data)
@@ -98,6 +100,7 @@ def test_shadow_width_matches_geometry(z_fg, z_bg):
     with SensorRenderer(model) as renderer:
         _, depth = renderer.render_rgbd(data, "xtion", W, H)
         proj = renderer.render_depth(data, "xtion", W, H, offset=noise.projector_offset)
+    proj = proj if method == "shadow_map" else None  # scanline: from the camera's depth alone
     out = noise.apply(depth, fx, fx, np.random.default_rng(0), projector_depth=proj)
     shadow = (depth > 0) & (out == 0)
     rows = range(H // 2 - 50, H // 2 + 50)  # rows through the box (>= 0.12 m / 1.2 m * f)
@@ -193,12 +196,9 @@ def test_each_effect_switches_off():
         assert config != STRUCTURED_LIGHT
         model = DepthNoiseModel(config)
         u = model.draw_unit(np.random.default_rng(11))
-        kwargs = dict(projector_depth=proj if model.needs_projector_depth else None, unit=u)
+        kwargs = dict(projector_depth=proj, unit=u)
         out = model.apply(depth, F, F, np.random.default_rng(5), specular, **kwargs)
         assert not np.array_equal(out, ref), effect
-    assert not DepthNoiseModel(preset("projector_shadow")).needs_projector_depth
-    assert DepthNoiseModel(STRUCTURED_LIGHT).needs_projector_depth
-    assert not DepthNoiseModel(DEFAULT_CONFIG).needs_projector_depth
     with pytest.raises(SensorError, match="projector_shadow.*registration"):
         without_effect(STRUCTURED_LIGHT, "speckle")
 
@@ -256,9 +256,7 @@ def test_v1_default_output_unchanged():
 def test_bad_inputs_list_valid_options():
     model = DepthNoiseModel(STRUCTURED_LIGHT)
     rng = np.random.default_rng(0)
-    with pytest.raises(SensorError, match="projector_depth.*valid"):
-        model.apply(plane(1.0), F, F, rng)
-    with pytest.raises(SensorError, match="projector_depth"):
+    with pytest.raises(SensorError, match="projector_depth must be .* or None"):
         model.apply(plane(1.0), F, F, rng, projector_depth=np.ones((3, 3), np.float32))
     with pytest.raises(SensorError, match="UnitError"):
         model.apply(plane(1.0), F, F, rng, projector_depth=plane(1.0), unit=(0.01, 0.0))
@@ -268,3 +266,30 @@ def test_bad_inputs_list_valid_options():
         DepthNoiseConfig(bm_window_px=8)
     with pytest.raises(SensorError, match=r"\[0.5, 1\]"):
         DepthNoiseConfig(bm_match_fraction=0.2)
+
+
+def test_scanline_shadow_agrees_with_the_shadow_map_on_a_cluttered_scene():
+    import gymnasium as gym
+
+    import ipbench.envs  # noqa: F401
+    from ipbench.envs.sorting import WRIST_CAMERA
+
+    env = gym.make("ipbench/SortingCluttered-v2")
+    try:
+        env.reset(seed=0)
+        base = env.unwrapped
+        renderer, data = base.renderer, base.data
+        fx = intrinsics(base.model, WRIST_CAMERA, W, H).fx
+        _, depth = renderer.render_rgbd(data, WRIST_CAMERA, W, H)
+        offset = base.depth_noise.projector_offset
+        proj = renderer.render_depth(data, WRIST_CAMERA, W, H, offset=offset)
+    finally:
+        env.close()
+    mapped = projector_lit(depth, proj, fx, offset[0], 0.01)
+    scanned = projector_visible(depth, fx, offset[0])
+    valid = depth > 0
+    assert 0.01 < (~mapped & valid).mean() < 0.2  # the scene casts shadows
+    assert (mapped == scanned)[valid].mean() > 0.99
+    # a projector on the other side: the mirror image of this one
+    mirrored = projector_visible(np.ascontiguousarray(depth[:, ::-1]), fx, -offset[0])[:, ::-1]
+    np.testing.assert_array_equal(mirrored, scanned)
