@@ -85,3 +85,9 @@ def test_gallery_shows_every_family_once_on_the_table():
     table = workcell_places().table_top
     for o in layout.objects:
         assert np.all(np.abs(np.asarray(o.position[:2]) - table.center[:2]) < table.half[:2])
+
+
+def test_unknown_classifier_is_rejected_with_the_valid_ones(tmp_path):
+    with pytest.raises(SystemExit, match="valid: gp, gp_mode, svm, sklearn_gp"):
+        main(["eval", "perception", "--classifiers", "gp,forest", "--out", str(tmp_path)])
+    assert not any(tmp_path.iterdir())
