@@ -31,11 +31,11 @@ def _add_json_option(parser: argparse.ArgumentParser) -> None:
     )
 
 
-def _add_env_option(parser: argparse.ArgumentParser) -> None:
+def _add_env_option(parser: argparse.ArgumentParser, default: str = "ipbench/Sorting-v1") -> None:
     parser.add_argument(
         "--env",
-        default="ipbench/Sorting-v1",
-        help="environment id whose objects and sensor are used (e.g. ipbench/Sorting-v2)",
+        default=default,
+        help=f"environment id whose objects and sensor are used (default {default})",
     )
 
 
@@ -143,9 +143,7 @@ def build_parser() -> argparse.ArgumentParser:
         description="Renders every object family of the env's catalogue (objects_<v>.png) and "
         "a cluttered wrist view: RGB, ideal and sensor depth (depth_<v>.png), into --out.",
     )
-    figures.add_argument(
-        "--env", default="ipbench/Sorting-v2", help="environment id (e.g. ipbench/Sorting-v2)"
-    )
+    _add_env_option(figures, "ipbench/Sorting-v2")
     figures.add_argument("--out", type=Path, default=Path("assets"), help="output folder")
 
     bench = sub.add_parser("bench", help="speed benchmarks that print figures")
