@@ -367,7 +367,7 @@ class DepthNoiseModel:
                     )
                 zp = np.ascontiguousarray(zp, dtype=np.float32)
                 lit = projector_lit(z, zp, fx, b, cfg.shadow_tolerance)
-            z = np.where(lit, z, np.float32(0))
+            z = np.multiply(z, lit, dtype=np.float32)  # shadowed: 0 (z >= 0 and finite)
         noisy = self._apply(z, float(fx), float(fy), rng, specular, cx, cy)
         if unit is None:
             return noisy

