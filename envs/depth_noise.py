@@ -52,13 +52,13 @@ from types import SimpleNamespace
 import cv2
 import numpy as np
 
+from . import _sensor_kernels as _k
 from .structured_light import (
     BlockMatcher,
     UnitError,
     apply_unit,
-    disparity,
-    disparity_noise,
     draw_unit_error,
+    noisy_depth,
     projector_lit,
     projector_visible,
 )
@@ -204,57 +204,32 @@ def cos_incidence(depth: np.ndarray, fx: float, fy: float, cx=None, cy=None) -> 
     centre ``((W - 1) / 2, (H - 1) / 2)``. Meaningless at missing pixels.
     """
     z = np.ascontiguousarray(depth, dtype=np.float32)
-    buffers = [np.empty_like(z) for _ in range(4)] + [np.empty(z.shape, bool)]
+    buffers = [np.empty_like(z) for _ in range(3)]
     return np.minimum(_cos_incidence(z, float(fx), float(fy), cx, cy, *buffers), np.float32(1))
 
 
-def _cos_incidence(z, fx, fy, cx, cy, out, gu, gv, tmp, cond) -> np.ndarray:
-    """:func:`cos_incidence` (up to rounding, not clipped to 1) in ``out``; scratch buffers."""
-    # Surface z(u, v), u and v from the principal point: normal ~ (fx z_u, fy z_v, -(z + u z_u
-    # + v z_v)), ray ~ (u / fx, v / fy, 1), normal . ray = -z: cos = z / (|normal| |ray|). The
-    # smaller one-sided difference is used: next to a discontinuity, the surface's own slope.
-    un, vn, r2 = _pixel_grid(z.shape, fx, fy, cx, cy)[:3]
-    _robust_diff(z, gu, tmp, out, cond, fx, axis=1)
-    _robust_diff(z, gv, tmp, out, cond, fy, axis=0)
-    np.multiply(un, gu, out=out)
-    out += z
-    out += np.multiply(vn, gv, out=tmp)
-    out *= out
-    out += np.multiply(gu, gu, out=gu)
-    out += np.multiply(gv, gv, out=gv)
-    out *= r2
-    out += np.float32(1e-30)
-    return np.divide(z, cv2.sqrt(out, dst=out), out=out)
+def _cos_incidence(z, fx, fy, cx, cy, out, gu, gv) -> np.ndarray:
+    """:func:`cos_incidence` (up to rounding, not clipped to 1) in ``out``; ``gu``, ``gv``:
+    scratch (H, W) float32.
 
-
-def _robust_diff(z, grad, diff, mag, cond, scale, axis) -> None:
-    """``grad`` = ``scale`` x the smaller of the two one-sided differences along ``axis``."""
-    # On the flattened image (contiguous, ~3x faster than column slices); the values that mix
-    # rows (first and last column, for axis 1) are overwritten by the border fix below.
-    s, n = z.shape[1] if axis == 0 else 1, z.size
-    zf, df, af, cf, gf = (x.reshape(-1) for x in (z, diff, mag, cond, grad))
-    np.subtract(zf[s:], zf[:-s], out=df[: n - s])  # d[i] = z[i + s] - z[i]
-    np.abs(df[: n - s], out=af[: n - s])
-    np.less(af[s : n - s], af[: n - 2 * s], out=cf[s : n - s])  # forward smaller
-    inner = np.subtract(df[s : n - s], df[: n - 2 * s], out=af[s : n - s])
-    inner *= cf[s : n - s]  # (np.copyto(where=) is ~30x slower with such masks)
-    np.add(df[: n - 2 * s], inner, out=gf[s : n - s])
-    if axis == 0:
-        grad[0], grad[-1] = diff[0], diff[-2]
-    else:
-        grad[:, 0], grad[:, -1] = diff[:, 0], diff[:, -2]
-    grad *= np.float32(scale)
+    Surface z(u, v), u and v from the principal point: normal ~ (fx z_u, fy z_v, -(z + u z_u
+    + v z_v)), ray ~ (u / fx, v / fy, 1), normal . ray = -z: cos = z / (|normal| |ray|). The
+    smaller one-sided difference is used: next to a discontinuity, the surface's own slope.
+    """
+    if min(z.shape) < 2:
+        raise SensorError(f"depth must be at least 2x2 px, got {z.shape}")
+    un, vn, r2 = _pixel_grid(z.shape, fx, fy, cx, cy)
+    return _k.cos_incidence_into(z, fx, fy, un[0], vn[:, 0], r2, out, gu, gv)
 
 
 @functools.lru_cache(maxsize=8)
 def _pixel_grid(shape, fx, fy, cx, cy):
-    """Per-image constants: (u - cx) / fx (1, W), (v - cy) / fy (H, 1), |ray|^2, remap base."""
+    """Per-image constants: (u - cx) / fx (1, W), (v - cy) / fy (H, 1), |ray|^2 (H, W)."""
     h, w = shape
     cx, cy = (w - 1) / 2 if cx is None else cx, (h - 1) / 2 if cy is None else cy
     un = ((np.arange(w) - cx) / fx).astype(np.float32)[None, :]
     vn = ((np.arange(h) - cy) / fy).astype(np.float32)[:, None]
-    base = np.stack(np.meshgrid(np.arange(w), np.arange(h)), axis=-1).astype(np.int16)
-    return un, vn, 1 + un**2 + vn**2, base
+    return un, vn, 1 + un**2 + vn**2
 
 
 @functools.cache
@@ -266,11 +241,11 @@ def _normal_quantiles(n: int) -> np.ndarray:
 
 def _workspace(h: int, w: int) -> SimpleNamespace:
     """Scratch buffers for one image shape (fresh large arrays cost page faults every frame)."""
-    kinds = dict.fromkeys("cos f1 f2 f3 noisy".split(), np.float32) | {"level": np.uint8}
-    kinds |= dict.fromkeys("drop edge mask spec spec2".split(), bool) | {"key": np.uint32}
-    ws = {k: np.empty((h, w), t) for k, t in (kinds | {"key2": np.uint32}).items()}
+    kinds = dict.fromkeys("cos f1 f2 f3 lut noisy".split(), np.float32) | {"level": np.uint8}
+    kinds |= dict.fromkeys("drop edge mask spec spec2".split(), bool)
+    ws = {k: np.empty((h, w), t) for k, t in kinds.items()}
     extra = dict(field=None, sin_beta=None, grid_key=None)
-    return SimpleNamespace(**ws, **extra, shape=(h, w), offsets=np.empty((h, w, 2), np.int16))
+    return SimpleNamespace(**ws, **extra, shape=(h, w))
 
 
 class DepthNoiseModel:
@@ -381,19 +356,16 @@ class DepthNoiseModel:
         if self._ws is None or self._ws.shape != (h, w):
             self._ws = _workspace(h, w)
         ws = self._ws
-        cosv = _cos_incidence(z, fx, fy, cx, cy, ws.cos, ws.f1, ws.f2, ws.f3, ws.mask)
+        cosv = _cos_incidence(z, fx, fy, cx, cy, ws.cos, ws.f1, ws.f2)
         level = cv2.convertScaleAbs(cosv, dst=ws.level, alpha=255.0)  # rint(cos(theta) * 255)
         # 8 random bytes per pixel, planar: 2 axial noise, 4 lateral offsets, 1 edge drop-out.
         raw = rng.integers(0, 2**64 - 1, size=n, dtype=np.uint64, endpoint=True).view(np.uint8)
 
         # Axial noise, then disparity quantisation.
-        sigma = cv2.LUT(level, self._angle_lut, dst=ws.f1)
-        sigma /= cv2.sqrt(np.maximum(z, lo, out=ws.f2), dst=ws.f2)
-        dz = np.subtract(z, np.float32(cfg.axial_c), out=ws.f2)
-        dz *= dz
-        dz *= np.float32(cfg.axial_b)
-        sigma += dz
-        sigma += np.float32(cfg.axial_a)
+        angle_term = cv2.LUT(level, self._angle_lut, dst=ws.lut)
+        abc = cfg.axial_a, cfg.axial_b, cfg.axial_c
+        sigma = ws.f1
+        _k.axial_sigma_into(z.reshape(-1), angle_term.reshape(-1), lo, *abc, sigma.reshape(-1))
         noisy = ws.noisy
         if cfg.block_matching:  # its noise is correlated over the window: from raw bytes
             lost = self._block_match(z, fx, noisy, sigma, level, cx, cy, raw[:n].reshape(h, w))
@@ -427,36 +399,24 @@ class DepthNoiseModel:
         # Lateral noise: sample at a neighbour displaced by a rounded Gaussian offset.
         if cfg.lateral_sigma_px <= 0 and cfg.lateral_angle_k_px <= 0:
             return noisy.copy()
-        # uint32 key = (level << 8 | byte) | (level << 8 | byte') << 16: two uint16 indices.
-        key = np.multiply(level, np.uint32(0x01000100), out=ws.key, dtype=np.uint32).reshape(-1)
-        key |= np.bitwise_and(raw[2 * n : 6 * n].view(np.uint32), 0x00FF00FF, out=ws.key2.ravel())
-        offsets = ws.offsets
-        self._lateral_lut.take(key.view(np.uint16), out=offsets.reshape(-1), mode="clip")
-        offsets += _pixel_grid(z.shape, fx, fy, cx, cy)[3]
-        return cv2.remap(noisy, offsets, None, cv2.INTER_NEAREST, borderMode=cv2.BORDER_REPLICATE)
+        # offsets (px) lut[level << 8 | byte] for x and y from random bytes 2n + 4i and + 2
+        out = np.empty_like(noisy)
+        return _k.lateral_resample_into(noisy, level, raw[2 * n : 6 * n], self._lateral_lut, out)
 
     def _block_match(self, z, fx, noisy, sigma, level, cx, cy, random_bytes) -> np.ndarray:
         """Block-matched depth plus disparity noise in ``noisy`` (before quantisation); lost."""
         cfg, ws = self.config, self._ws
         fb = fx * cfg.baseline_m
-        d = disparity(fb, z, out=ws.f2)  # px; 0 where z is 0
         if ws.sin_beta is None or ws.sin_beta.shape != z.shape or ws.grid_key != (fx, cx, cy):
             r2 = np.broadcast_to(_pixel_grid(z.shape, fx, fx, cx, cy)[2], z.shape)
             ws.sin_beta, ws.grid_key = np.sqrt(1 - 1 / r2).astype(np.float32), (fx, cx, cy)
-        slope = cv2.LUT(level, self._tan_lut, dst=ws.f3)
-        slope += ws.sin_beta
-        slope *= d
-        slope *= np.float32(8 * math.sqrt(2) / fx)
+        # disparity (px; 0 where z is 0) and the bound 8 sqrt(2) |grad d| on its window span
+        d, slope, tan = ws.f2, ws.f3, cv2.LUT(level, self._tan_lut, dst=ws.lut)
+        flat = (x.reshape(-1) for x in (z, tan, ws.sin_beta))
+        _k.disparity_slope_into(*flat, fb, 8 * math.sqrt(2) / fx, d.reshape(-1), slope.reshape(-1))
         matched, lost = self._matcher.match(d, slope, cfg.projector_side)
         step, k = cfg.disparity_step_px, cfg.bm_window_px
-        noise = disparity_noise(random_bytes, sigma, d, fb, step, k, out=noisy)
-        noise += matched  # noisy disparity (lost pixels: 0, dropped later)
-        if step > 0:  # quantised to the disparity step, in disparity
-            noise *= np.float32(1.0 / step)
-            np.rint(noise, out=noise)
-            fb /= step
-        with np.errstate(divide="ignore", invalid="ignore"):
-            np.divide(np.float32(fb), noise, out=noisy)
+        noisy_depth(random_bytes, sigma, d, matched, fb, step, k, out=noisy)
         return lost
 
     def _specular_drop(self, cosv: np.ndarray, rng: np.random.Generator, ws) -> np.ndarray:
