@@ -8,11 +8,12 @@ Importing this package registers the environments::
     env = gym.make("ipbench/Sorting-v1", scene="cluttered", render_mode="rgb_array")
 
 ``ipbench/Sorting-v1`` takes the scene as a keyword (``"uncluttered"`` or ``"cluttered"``);
-the standard scenes are also registered as their own ids. A released id never changes
-behaviour: a change bumps the version. ``-v0`` ids keep the first manipulation (fully opened
-jaws, blind descents; see :data:`ipbench.envs.sorting.V0`). ``-v2`` ids (under development,
-:data:`UNDER_DEVELOPMENT`) add the v2 object catalogue and structured-light depth
-(:data:`ipbench.envs.sorting.V2`).
+the standard scenes are also registered as their own ids. Every id takes ``cameras=`` (the
+observation mode: ``("wrist", "head")`` by default, ``("wrist",)`` renders no head images). A
+released id never changes behaviour: a change bumps the version. ``-v0`` ids keep the first
+manipulation (fully opened jaws, blind descents; see :data:`ipbench.envs.sorting.V0`). ``-v2``
+ids (under development, :data:`UNDER_DEVELOPMENT`) add the v2 object catalogue and
+structured-light depth (:data:`ipbench.envs.sorting.V2`).
 """
 
 import warnings
@@ -54,7 +55,10 @@ class EnvIdError(ValueError):
 
 def env_config(env_id: str, **overrides) -> SortingConfig:
     """The :class:`~ipbench.envs.sorting.SortingConfig` that ``gym.make(env_id, **overrides)``
-    runs with (what a capture rig or a report needs to know about an id)."""
+    runs with (what a capture rig or a report needs to know about an id). Overrides are checked
+    as ``gym.make`` checks them, e.g. ``cameras=("wrist",)`` (the observation mode, see
+    :data:`~ipbench.envs.sorting.CAMERAS`): a bad value is a ``ValueError`` listing the valid
+    ones."""
     if env_id not in ENV_IDS:
         raise EnvIdError(f"unknown env id {env_id!r}; valid: {', '.join(ENV_IDS)}")
     return SortingConfig(**{**ENV_IDS[env_id], **overrides})

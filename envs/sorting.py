@@ -21,12 +21,19 @@ documents it):
   ``ROBOT_JOINTS``),
   ``wrist_K``/``head_*_K`` (3x3 intrinsics), ``wrist_pose``/``head_*_pose`` (4x4
   world-from-camera, OpenCV convention: x right, y down, z forward).
+  ``cameras=`` (:data:`CAMERAS`; default both) chooses which cameras are rendered: e.g.
+  ``gym.make("ipbench/Sorting-v2", cameras=("wrist",))`` renders no head images and its
+  observation (and space) has no ``head_*`` keys; every other value is what the default
+  gives.
 * ``info``: ``objects`` (per object id: category, instance, known, pose (7,) position and
   quaternion of the object frame, center (3,) of its bounding box, status),
-  ``wrist_mask`` (480x640 int16 object id per pixel, -1 = none), ``skills`` (what ran, with
-  success and reason), ``physics_undone`` (v1: this step's physics blew up and was rolled
-  back; its skill is reported as failed), ``physics_unstable`` (v0: it blew up).
+  ``wrist_mask`` (480x640 int16 object id per pixel, -1 = none; only with the wrist camera),
+  ``skills`` (what ran, with success and reason), ``physics_undone`` (v1: this step's physics
+  blew up and was rolled back; its skill is reported as failed), ``physics_unstable`` (v0: it
+  blew up).
   Ground truth lives only in ``info``.
+* ``step()`` or ``render()`` before ``reset()`` or after ``close()`` raises
+  :class:`ResetNeededError`; ``close()`` is idempotent and ``reset()`` starts a new episode.
 * ``reset(seed=..., options={"layout": Layout})`` sets the objects up as the given
   :class:`~ipbench.envs.layout.Layout` instead of sampling the scene's (a capture rig or a
   hand-made scene); without options the scene's seeded layout is used.
@@ -74,12 +81,14 @@ from ipbench.envs.skills import SkillConfig, SkillResult, Skills
 from ipbench.envs.world import Places, World, build_world, object_status
 
 __all__ = [
+    "CAMERAS",
     "COMMANDS",
     "ROBOT_JOINTS",
     "WRIST_CAMERA",
     "InvalidActionError",
     "MAX_JAW_OPENING",
     "MAX_OBJECT_SPEED",
+    "ResetNeededError",
     "V0",
     "V2",
     "workcell_places",
@@ -90,6 +99,11 @@ __all__ = [
 COMMANDS = ("place_in_bin", "inspect_in_area", "inspect_in_hand")
 """Meaning of ``action["command"]``."""
 WRIST_CAMERA = f"{CAMERA_ARM}_wrist_camera"
+CAMERAS: tuple[str, ...] = ("wrist", "head")
+"""The cameras an observation can hold (:attr:`SortingConfig.cameras`), in this order:
+``"wrist"``: the camera arm's RGB-D camera (``wrist_rgb``, ``wrist_depth``, ``wrist_K``,
+``wrist_pose``; and ``info["wrist_mask"]``); ``"head"``: the head's stereo pair (``head_left``,
+``head_right``, ``head_left_K``, ``head_left_pose``, ``head_right_K``, ``head_right_pose``)."""
 ROBOT_JOINTS: tuple[str, ...] = (
     ("turntable_joint",)
     + arm_joint_names(GRIPPER_ARM)
@@ -134,8 +148,25 @@ def _layout_option(options: dict | None) -> Layout | None:
     return layout
 
 
+def _cameras(cameras) -> tuple[str, ...]:
+    """``cameras`` checked and in :data:`CAMERAS` order; a clear error listing the valid ones."""
+    valid = f"valid: a non-empty tuple of {', '.join(map(repr, CAMERAS))}, e.g. ('wrist',)"
+    if isinstance(cameras, str) or not isinstance(cameras, (tuple, list)):
+        raise ValueError(f"cameras must be a tuple of camera names, got {cameras!r}; {valid}")
+    unknown = [c for c in cameras if c not in CAMERAS]
+    if unknown or not cameras or len(set(cameras)) != len(cameras):
+        what = f"unknown camera(s) {unknown}" if unknown else "no camera or one named twice"
+        raise ValueError(f"cameras={tuple(cameras)!r}: {what}; {valid}")
+    return tuple(c for c in CAMERAS if c in cameras)
+
+
 class InvalidActionError(ValueError):
     """An action outside the action space; the message says which field and what is valid."""
+
+
+class ResetNeededError(RuntimeError, gym.error.ResetNeeded):
+    """``step()`` or ``render()`` without an episode: before the first ``reset()`` or after
+    ``close()``; the message says to call ``reset()``."""
 
 
 @dataclass(frozen=True)
@@ -164,6 +195,13 @@ class SortingConfig:
     catalog : the object catalogue (``"v1"``: one shape family per category, flat colours;
         ``"v2"``: several real-product families per category with printed textures; see
         :mod:`ipbench.assets.objects`).
+    cameras : the cameras rendered into the observation, a non-empty tuple of
+        :data:`CAMERAS` (a list is taken as a tuple; stored in :data:`CAMERAS` order; a plain
+        string is an error). A camera not named is not rendered and its keys are absent from
+        the observation and its space; the other keys and the environment's random stream
+        are those of the default. Without ``"wrist"`` the wrist's depth noise is not drawn
+        either (and ``info`` has no ``wrist_mask``), so an unseeded ``reset()`` after an
+        episode then lays out other objects than the default would; seeded resets agree.
     """
 
     scene: str = "uncluttered"
@@ -180,6 +218,10 @@ class SortingConfig:
     finger_armature: float | None = None
     bin_depth: float = BIN_INTERIOR[2]
     catalog: str = "v1"
+    cameras: tuple[str, ...] = CAMERAS
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "cameras", _cameras(self.cameras))
 
 
 V0: dict = {
@@ -221,28 +263,31 @@ class SortingEnv(gym.Env):
         self._noise = DepthNoiseModel(self.config.depth_noise)
         self._renderer: SensorRenderer | None = None
         self.world: World | None = None
+        self._closed = False
+        self._wrist_seg: np.ndarray | None = None
         self._frame_listeners: list[tuple[float, Callable[[], None]]] = []
         self._robot_joints = ROBOT_JOINTS
         hh, hw = self.config.head_size
         mat = spaces.Box(-np.inf, np.inf, (3, 3), np.float64)
         pose = spaces.Box(-np.inf, np.inf, (4, 4), np.float64)
-        self.observation_space = spaces.Dict(
-            {
+        obs_spaces = {"qpos": spaces.Box(-np.inf, np.inf, (len(self._robot_joints),), np.float64)}
+        if "wrist" in self.config.cameras:
+            obs_spaces |= {
                 "wrist_rgb": spaces.Box(0, 255, (*WRIST_SIZE, 3), np.uint8),
                 "wrist_depth": spaces.Box(
                     0.0, np.float32(self.config.depth_noise.max_range_m), WRIST_SIZE, np.float32
                 ),
-                "head_left": spaces.Box(0, 255, (hh, hw, 3), np.uint8),
-                "head_right": spaces.Box(0, 255, (hh, hw, 3), np.uint8),
-                "qpos": spaces.Box(-np.inf, np.inf, (len(self._robot_joints),), np.float64),
                 "wrist_K": mat,
                 "wrist_pose": pose,
-                "head_left_K": mat,
-                "head_left_pose": pose,
-                "head_right_K": mat,
-                "head_right_pose": pose,
             }
-        )
+        if "head" in self.config.cameras:
+            for side in HEAD_SIDES:
+                obs_spaces |= {
+                    f"head_{side}": spaces.Box(0, 255, (hh, hw, 3), np.uint8),
+                    f"head_{side}_K": mat,
+                    f"head_{side}_pose": pose,
+                }
+        self.observation_space = spaces.Dict(obs_spaces)  # (keys sorted, as before)
         self.action_space = spaces.Dict(
             {
                 "command": spaces.Discrete(len(COMMANDS)),
@@ -336,12 +381,12 @@ class SortingEnv(gym.Env):
         self._statuses = self._all_statuses()
         self._unstable = self._blew_up
         self._undone = False
+        self._closed = False
         obs = self._observation()
         return obs, self._info([])
 
     def step(self, action):
-        if self.world is None:
-            raise RuntimeError("call reset() before step()")
+        self._require_episode("step")
         command, position, yaw, bin_index, opening = self._validate(action)
         self._steps += 1
         warnings_before = sum(w.number for w in self.data.warning)
@@ -372,8 +417,9 @@ class SortingEnv(gym.Env):
         return obs, float(reward), bool(terminated), bool(truncated), self._info(results)
 
     def render(self):
-        if self.render_mode != "rgb_array" or self._renderer is None:
+        if self.render_mode != "rgb_array":
             return None
+        self._require_episode("render")
         h, w = self.config.render_size
         return self._renderer.render_rgb(self.data, "overview", w, h)
 
@@ -388,9 +434,18 @@ class SortingEnv(gym.Env):
         return self._noise
 
     def close(self) -> None:
+        """Free the renderer and end the episode (idempotent); ``reset()`` starts a new one."""
         if self._renderer is not None:
             self._renderer.close()
             self._renderer = None
+        if self.world is not None:
+            self.world = None
+            self._closed = True
+
+    def _require_episode(self, method: str) -> None:
+        if self.world is None:
+            why = "the environment was closed" if self._closed else "no episode has started"
+            raise ResetNeededError(f"{why}: call reset() before {method}()")
 
     # -- internals ---------------------------------------------------------------------------
     def _validate(self, action) -> tuple[int, np.ndarray, float, int, float | None]:
@@ -508,28 +563,29 @@ class SortingEnv(gym.Env):
 
     def _observation(self) -> dict:
         m, d, r = self.model, self.data, self._renderer
-        h, w = WRIST_SIZE
-        rgb, depth = r.render_rgbd(d, WRIST_CAMERA, w, h)
-        seg = r.render_segmentation(d, WRIST_CAMERA, w, h)
-        self._wrist_seg = seg
-        k_wrist = intrinsics(m, WRIST_CAMERA, w, h)
-        specular = self._specular_geoms[seg] if self._noise.uses_specular else None
-        depth = self._noise.apply(
-            depth, k_wrist.fx, k_wrist.fy, self.np_random, specular=specular, unit=self._unit
-        )
-        hh, hw = self.config.head_size
-        obs = {
-            "wrist_rgb": rgb,
-            "wrist_depth": depth.astype(np.float32),
-            "qpos": d.qpos[self._robot_qadr].copy(),
-            "wrist_K": k_wrist.K,
-            "wrist_pose": camera_pose(m, d, WRIST_CAMERA),
-        }
-        for side in HEAD_SIDES:
-            cam = f"head_{side}_camera"
-            obs[f"head_{side}"] = r.render_rgb(d, cam, hw, hh)
-            obs[f"head_{side}_K"] = intrinsics(m, cam, hw, hh).K
-            obs[f"head_{side}_pose"] = camera_pose(m, d, cam)
+        wrist = "wrist" in self.config.cameras
+        obs: dict[str, np.ndarray] = {}
+        if wrist:  # (keys in the order they always had)
+            h, w = WRIST_SIZE
+            rgb, depth = r.render_rgbd(d, WRIST_CAMERA, w, h)
+            seg = r.render_segmentation(d, WRIST_CAMERA, w, h)
+            self._wrist_seg = seg
+            k_wrist = intrinsics(m, WRIST_CAMERA, w, h)
+            specular = self._specular_geoms[seg] if self._noise.uses_specular else None
+            depth = self._noise.apply(
+                depth, k_wrist.fx, k_wrist.fy, self.np_random, specular=specular, unit=self._unit
+            )
+            obs["wrist_rgb"], obs["wrist_depth"] = rgb, depth.astype(np.float32)
+        obs["qpos"] = d.qpos[self._robot_qadr].copy()
+        if wrist:
+            obs["wrist_K"], obs["wrist_pose"] = k_wrist.K, camera_pose(m, d, WRIST_CAMERA)
+        if "head" in self.config.cameras:
+            hh, hw = self.config.head_size
+            for side in HEAD_SIDES:
+                cam = f"head_{side}_camera"
+                obs[f"head_{side}"] = r.render_rgb(d, cam, hw, hh)
+                obs[f"head_{side}_K"] = intrinsics(m, cam, hw, hh).K
+                obs[f"head_{side}_pose"] = camera_pose(m, d, cam)
         return obs
 
     def _all_statuses(self) -> list[str]:
@@ -552,9 +608,10 @@ class SortingEnv(gym.Env):
                 "center": pos + rot @ np.asarray(obj.instance.center),
                 "status": self._statuses[k],
             }
-        return {
-            "objects": objects,
-            "wrist_mask": self._mask_lut[self._wrist_seg],
+        info: dict = {"objects": objects}
+        if "wrist" in self.config.cameras:  # (no wrist camera: no view to label)
+            info["wrist_mask"] = self._mask_lut[self._wrist_seg]
+        return info | {
             "skills": [r.__dict__.copy() for r in results],
             "physics_unstable": self._unstable,
             "physics_undone": self._undone,

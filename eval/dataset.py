@@ -59,6 +59,7 @@ from ipbench.perception.cloud import PerceptionError, depth_to_points
 from ipbench.perception.features import FeatureConfig, fpfh
 from ipbench.perception.segmentation import SegmentationConfig, segment_scene
 from ipbench.perception.viewset import ViewSet
+from ipbench.policies import EVAL_CAMERAS
 
 __all__ = [
     "DatasetConfig",
@@ -264,10 +265,15 @@ def render_cluttered_segments(config: DatasetConfig, progress: bool = True) -> V
 
     import ipbench.envs  # noqa: F401
 
+    # only the wrist is read (the head's images would be rendered for nothing; the same data)
     if config.env_id == "ipbench/Sorting-v1":  # as before v2
-        env = gym.make("ipbench/SortingCluttered-v0", depth_noise=config.sensor)
+        env = gym.make(
+            "ipbench/SortingCluttered-v0", depth_noise=config.sensor, cameras=EVAL_CAMERAS
+        )
     else:
-        env = gym.make(config.env_id, scene="cluttered", depth_noise=config.sensor)
+        env = gym.make(
+            config.env_id, scene="cluttered", depth_noise=config.sensor, cameras=EVAL_CAMERAS
+        )
     descriptors, labels, names, known = [], [], [], []
     try:
         for seed in tqdm(config.cluttered_seeds, desc="cluttered scenes", disable=not progress):

@@ -36,6 +36,7 @@ from ipbench.perception.cloud import PerceptionError, depth_to_points
 from ipbench.perception.features import fpfh
 from ipbench.perception.segmentation import segment_in_hand
 from ipbench.perception.viewset import ViewSet
+from ipbench.policies import EVAL_CAMERAS
 from ipbench.policies.kinematics import HandKinematics
 from ipbench.policies.scripted import ROUND, grasp_point, grasp_yaws, jaw_span
 
@@ -77,7 +78,7 @@ def render_in_hand_views(inst: ObjectInstance, config: DatasetConfig) -> ViewSet
     if config.in_hand_views < 1:
         return ViewSet.from_views([], [], [], [], "in_hand")
     kinematics = HandKinematics()
-    env = gym.make(config.env_id, depth_noise=config.sensor)
+    env = gym.make(config.env_id, depth_noise=config.sensor, cameras=EVAL_CAMERAS)
     try:
         for pose_name in HAND_POSES:
             for placement in range(config.in_hand_placements):

@@ -42,6 +42,7 @@ from ipbench.perception.metrics import (
 from ipbench.perception.model import MODEL_VERSION, PerceptionModel, load_or_train
 from ipbench.perception.segment_eval import match_segments
 from ipbench.perception.segmentation import segment_scene
+from ipbench.policies import EVAL_CAMERAS
 
 __all__ = [
     "ABLATION_PROTOCOL",
@@ -253,7 +254,12 @@ def segmentation_scores(
 
     out = {}
     for scene in SCENES:
-        env = gym.make(config.dataset.env_id, scene=scene, depth_noise=config.dataset.sensor)
+        env = gym.make(
+            config.dataset.env_id,
+            scene=scene,
+            depth_noise=config.dataset.sensor,
+            cameras=EVAL_CAMERAS,
+        )
         rows = []
         for seed in seeds:
             obs, info = env.reset(seed=seed)

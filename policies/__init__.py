@@ -19,6 +19,7 @@ from ipbench.policies.perceiver import Detection, Perceiver
 from ipbench.policies.random_sorting import RandomSorter
 
 __all__ = [
+    "EVAL_CAMERAS",
     "FUSIONS",
     "INTERACTIVE",
     "POLICIES",
@@ -33,6 +34,11 @@ __all__ = [
 
 POLICIES: tuple[str, ...] = ("random", "gp-ipm", "gp-ipm-area", "svm-ipm", "oracle")
 """Policy names of the benchmark."""
+EVAL_CAMERAS: tuple[str, ...] = ("wrist",)
+"""The cameras the policies of :data:`POLICIES` read (``observation["wrist_*"]`` and ``qpos``;
+the oracle also ``info["wrist_mask"]``; none reads the head's stereo pair): what the
+evaluation and its capture rigs ask the environment to render
+(``gym.make(env_id, cameras=EVAL_CAMERAS)``, see :data:`ipbench.envs.sorting.CAMERAS`)."""
 INTERACTIVE: dict[str, tuple[str, str]] = {
     "gp-ipm": ("gp", "hand"),
     "gp-ipm-area": ("gp", "area"),

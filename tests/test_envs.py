@@ -11,7 +11,7 @@ from gymnasium.utils.env_checker import check_env
 import ipbench.envs
 from ipbench.assets.compose import BIN_INTERIOR
 from ipbench.assets.objects import CATEGORIES
-from ipbench.envs.sorting import COMMANDS, InvalidActionError
+from ipbench.envs.sorting import COMMANDS, InvalidActionError, ResetNeededError
 from ipbench.policies.scripted import GroundTruthSorter
 
 ENV_IDS = sorted(ipbench.envs.ENV_IDS)
@@ -269,6 +269,30 @@ def test_v0_keeps_its_manipulation():
     assert depth[0] == pytest.approx(0.24) and depth[1] == pytest.approx(BIN_INTERIOR[2])
     v0.close()
     v1.close()
+
+
+def test_step_and_render_without_an_episode_ask_for_reset():
+    assert issubclass(ResetNeededError, gym.error.ResetNeeded)
+    assert issubclass(ResetNeededError, RuntimeError)  # (what step before reset raised)
+    env = gym.make("ipbench/SortingUncluttered-v1", render_mode="rgb_array")
+    base = env.unwrapped
+    action = {"command": 0, "position": np.zeros(3), "yaw": [0.0], "bin": 0, "opening": [0.1]}
+    for call in (lambda: base.step(action), base.render):
+        with pytest.raises(ResetNeededError, match=r"no episode has started: call reset\(\)"):
+            call()
+    obs, info = env.reset(seed=0)
+    action = GroundTruthSorter().act(obs, info)
+    env.close()
+    env.close()  # harmless
+    for call in (lambda: env.step(action), env.render, lambda: base.step(action)):
+        with pytest.raises(ResetNeededError, match=r"was closed: call reset\(\) before"):
+            call()
+    assert base.renderer is None
+    obs, info = env.reset(seed=0)  # a new episode
+    assert env.render().shape == (480, 640, 3)
+    obs, reward, *_ = env.step(action)
+    assert env.observation_space.contains(obs)
+    env.close()
 
 
 def test_unknown_scene_is_a_clear_error():
