@@ -12,16 +12,40 @@ import time
 from dataclasses import replace
 from pathlib import Path
 
-from ipbench.eval.sorting import SortingEvalConfig, Task, _executor, prepare_models
+from ipbench.eval.sorting import (
+    SortingEvalConfig,
+    SortingEvalError,
+    Task,
+    _executor,
+    prepare_models,
+)
 
-__all__ = ["bench_eval"]
+__all__ = ["bench_eval", "check_bench_eval"]
+
+
+def check_bench_eval(policies: tuple[str, ...], episodes: int) -> SortingEvalConfig:
+    """The configuration :func:`bench_eval` measures, checked before any work.
+
+    Raises :class:`~ipbench.eval.sorting.SortingEvalError` (saying what is valid) for unknown
+    policies, or ``episodes`` outside 1 .. the first validation seed (the episodes run seeds
+    0 .. ``episodes`` - 1, which must not be validation seeds)."""
+    first_validation = min(SortingEvalConfig().validation_seeds)
+    if not 1 <= episodes <= first_validation:
+        raise SortingEvalError(
+            f"episodes must be between 1 and {first_validation} (seeds 0 .. episodes - 1, below "
+            f"the validation seeds), got {episodes}"
+        )
+    return SortingEvalConfig(
+        scenes=("cluttered",), policies=tuple(policies), seeds=tuple(range(episodes))
+    )
 
 
 def bench_eval(
     cache: Path, policies: tuple[str, ...] = ("random", "gp-ipm"), episodes: int = 4
 ) -> dict[str, float]:
-    """Episodes per minute per policy and worker count (see the module docstring)."""
-    base = SortingEvalConfig(scenes=("cluttered",), policies=policies, seeds=tuple(range(episodes)))
+    """Episodes per minute per policy and worker count (see the module docstring); bad
+    settings raise before any work (:func:`check_bench_eval`)."""
+    base = check_bench_eval(policies, episodes)
     models, _ = prepare_models(cache, base)
     figures: dict[str, float] = {}
     for policy in policies:

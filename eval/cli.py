@@ -20,6 +20,50 @@ from pathlib import Path
 __all__ = ["main", "build_parser"]
 
 
+def _valid_names() -> dict[str, tuple[str, ...]]:
+    """The names help texts list, by placeholder (imported when help is shown: slow)."""
+    from ipbench.envs import ENV_IDS
+    from ipbench.envs.layout import SCENES
+    from ipbench.eval.sorting import BACKENDS
+    from ipbench.policies import FUSIONS, POLICIES
+
+    return {
+        "{ENV_IDS}": tuple(ENV_IDS),
+        "{SCENES}": tuple(SCENES),
+        "{POLICIES}": POLICIES,
+        "{BACKENDS}": BACKENDS,
+        "{FUSIONS}": tuple(FUSIONS),
+    }
+
+
+class _HelpFormatter(argparse.ArgumentDefaultsHelpFormatter):
+    """Shows each option's default (not None or a flag's False) and fills the lists of valid
+    names (``{SCENES}``, ``{POLICIES}``, ... of :func:`_valid_names`) into help texts."""
+
+    def _get_help_string(self, action: argparse.Action) -> str:
+        text = action.help or ""
+        if "{" in text:
+            for token, names in _valid_names().items():
+                text = text.replace(token, ", ".join(names))
+        shown = action.option_strings or action.nargs in (argparse.OPTIONAL, argparse.ZERO_OR_MORE)
+        if (
+            shown
+            and "%(default)" not in text
+            and action.default not in (None, argparse.SUPPRESS)
+            and not isinstance(action.default, bool)
+        ):
+            text += " (default: %(default)s)"
+        return text
+
+
+class _Parser(argparse.ArgumentParser):
+    """An argument parser (and sub-parsers) with :class:`_HelpFormatter`."""
+
+    def __init__(self, *args, **kwargs) -> None:
+        kwargs.setdefault("formatter_class", _HelpFormatter)
+        super().__init__(*args, **kwargs)
+
+
 def _add_json_option(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--json",
@@ -35,7 +79,7 @@ def _add_env_option(parser: argparse.ArgumentParser, default: str = "ipbench/Sor
     parser.add_argument(
         "--env",
         default=default,
-        help=f"environment id whose objects and sensor are used (default {default})",
+        help="environment id whose objects and sensor are used: {ENV_IDS}",
     )
 
 
@@ -48,7 +92,7 @@ def _env_id(text: str) -> str:
 
 
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(
+    parser = _Parser(
         prog="ipbench",
         description=(
             "ipbench: a MuJoCo benchmark of robotic interactive perception on the CloPeMa "
@@ -66,7 +110,7 @@ def build_parser() -> argparse.ArgumentParser:
     )
     demo.add_argument("--out", type=Path, default=Path("results"), help="output folder")
     demo.add_argument(
-        "--scenes", default="uncluttered,cluttered", help="comma-separated scene names"
+        "--scenes", default="uncluttered,cluttered", help="comma-separated scenes of {SCENES}"
     )
     demo.add_argument("--seed", type=int, default=0, help="episode seed")
     demo.add_argument("--no-video", action="store_true", help="skip the MP4s")
@@ -106,7 +150,7 @@ def build_parser() -> argparse.ArgumentParser:
         "Writes OUT/summary.json, OUT/sorting.md, plots and (--video) MP4s.",
     )
     sorting.add_argument(
-        "--scenes", default="uncluttered,cluttered", help="comma-separated scene names"
+        "--scenes", default="uncluttered,cluttered", help="comma-separated scenes of {SCENES}"
     )
     sorting.add_argument(
         "--policies",
@@ -121,16 +165,19 @@ def build_parser() -> argparse.ArgumentParser:
     sorting.add_argument(
         "--backend",
         default="process",
-        help="process (local worker processes) or ray (Ray tasks; pip install 'ipbench[ray]')",
+        help="one of {BACKENDS}: process (local worker processes) or ray (Ray tasks; "
+        "pip install 'ipbench[ray]')",
     )
     sorting.add_argument(
-        "--ray-address", default=None, help="Ray cluster address (default: a local instance)"
+        "--ray-address",
+        default=None,
+        help="Ray cluster address, with --backend ray only (default: a local instance)",
     )
     sorting.add_argument(
         "--video", action="store_true", help="an MP4 of each policy and scene (first seed)"
     )
     sorting.add_argument(
-        "--fusion", default="majority", help="view fusion: majority (thesis) or bayes"
+        "--fusion", default="majority", help="view fusion, one of {FUSIONS} (thesis: majority)"
     )
     sorting.add_argument("--out", type=Path, default=Path("results/sorting"), help="report folder")
     sorting.add_argument(
@@ -155,7 +202,7 @@ def build_parser() -> argparse.ArgumentParser:
         "stereo fps, pick-and-place skill wall time, reset time.",
     )
     _add_env_option(sim)
-    sim.add_argument("--scene", default="uncluttered", help="scene to measure")
+    sim.add_argument("--scene", default="uncluttered", help="scene to measure, one of {SCENES}")
     _add_json_option(sim)
     bench_perception = bench_sub.add_parser(
         "perception",
@@ -171,8 +218,16 @@ def build_parser() -> argparse.ArgumentParser:
         description="Runs a few cluttered episodes per policy serially and with 2 worker "
         "processes and prints episodes/minute (models from --cache, trained if missing).",
     )
-    bench_eval.add_argument("--policies", default="random,gp-ipm", help="policies to time")
-    bench_eval.add_argument("--episodes", type=int, default=4, help="episodes per measurement")
+    bench_eval.add_argument(
+        "--policies", default="random,gp-ipm", help="comma-separated policies to time: {POLICIES}"
+    )
+    bench_eval.add_argument(
+        "--episodes",
+        type=int,
+        default=4,
+        help="episodes per measurement (seeds 0 .. N-1; 1 <= N <= 1000, below the validation "
+        "seeds)",
+    )
     bench_eval.add_argument(
         "--cache", type=Path, default=Path("results/cache"), help="model cache folder"
     )
@@ -197,13 +252,25 @@ def _seeds(text: str) -> tuple[int, ...]:
     return seeds
 
 
-def _writable(path: Path) -> None:
+def _writable(path: Path, option: str) -> None:
+    """Create folder ``path`` (given as ``option``) or exit with a one-line reason and fix."""
     from ipbench.eval.files import ensure_writable
 
+    path = Path(path)
+    blocker = next((p for p in (path, *path.parents) if p.exists() and not p.is_dir()), None)
+    if blocker is not None:
+        what = "it is a file" if blocker == path else f"{blocker} is a file"
+        raise SystemExit(
+            f"ipbench: cannot write to {option} {path}: {what}, not a folder; pass a folder "
+            "(created if missing), or move the file away"
+        )
     try:
         ensure_writable(path)
     except OSError as err:
-        raise SystemExit(f"ipbench: cannot write to {path}: {err}") from err
+        raise SystemExit(
+            f"ipbench: cannot write to {option} {path}: {err.strerror or err}; pass a folder "
+            "you can write to"
+        ) from err
 
 
 def _print_figures(figures: dict, json_arg: str | None, report) -> None:
@@ -250,7 +317,7 @@ def main(argv: list[str] | None = None) -> int:
         from ipbench.eval.demo import run_demo
 
         scenes = _scenes(args.scenes)
-        _writable(args.out)
+        _writable(args.out, "--out")
         summary = run_demo(args.out, scenes, seed=args.seed, video=not args.no_video)
         for scene, s in summary.items():
             print(
@@ -263,8 +330,8 @@ def main(argv: list[str] | None = None) -> int:
         from ipbench.eval.perception import PerceptionEvalConfig, run_perception_eval
 
         config = PerceptionEvalConfig.for_env(_env_id(args.env), **_classifiers(args))
-        _writable(args.out)
-        _writable(args.cache)
+        _writable(args.out, "--out")
+        _writable(args.cache, "--cache")
         metrics = run_perception_eval(args.out, args.cache, config)
         for split, by_name in metrics["splits"].items():
             row = ", ".join(f"{n} {m['accuracy']:.3f}" for n, m in by_name.items() if m.get("n", 0))
@@ -285,7 +352,8 @@ def main(argv: list[str] | None = None) -> int:
                 video=args.video,
                 fusion=args.fusion,
             )
-            _writable(args.cache)
+            _writable(args.out, "--out")
+            _writable(args.cache, "--cache")
             summary = run_sorting_eval(args.out, args.cache, config)
         except SortingEvalError as err:
             raise SystemExit(f"ipbench: {err}") from err
@@ -301,7 +369,7 @@ def main(argv: list[str] | None = None) -> int:
         from ipbench.eval.figures import depth_figure, family_gallery
 
         env_id = _env_id(args.env)
-        _writable(args.out)
+        _writable(args.out, "--out")
         version = env_id.rsplit("-", 1)[-1]
         for path in (
             family_gallery(args.out / f"objects_{version}.png", env_id),
@@ -311,10 +379,17 @@ def main(argv: list[str] | None = None) -> int:
         return 0
     if args.command == "bench" and args.target == "eval":
         from ipbench.eval.bench import report
-        from ipbench.eval.bench_eval import bench_eval
+        from ipbench.eval.bench_eval import bench_eval, check_bench_eval
+        from ipbench.eval.sorting import SortingEvalError
 
         policies = tuple(p.strip() for p in args.policies.split(",") if p.strip())
-        _print_figures(bench_eval(args.cache, policies, args.episodes), args.json, report)
+        try:
+            check_bench_eval(policies, args.episodes)
+            _writable(args.cache, "--cache")
+            figures = bench_eval(args.cache, policies, args.episodes)
+        except SortingEvalError as err:
+            raise SystemExit(f"ipbench: {err}") from err
+        _print_figures(figures, args.json, report)
         return 0
     if args.command == "bench" and args.target == "sim":
         from ipbench.eval.bench import bench_sim, report

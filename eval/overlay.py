@@ -3,8 +3,11 @@
 It mimics the thesis' semantic visualisation (ch. 5/6, the figures of segmented scenes): each
 object a policy has perceived is tinted with the colour of its predicted class, outlined and
 labelled ``"<class> <confidence>"``; objects the policy has inspected are marked with ``*``
-and a white-edged outline. The wrist camera's colour image and a colour-mapped depth image
-are inset in the top-right corner.
+and a white-edged outline. A label sits above (or below) its object; where that would cover
+another object or label, as over a cluttered pile, it goes to the nearest free place around
+the object, with a leader line to it, so labels neither overlap nor hide the pile. The
+wrist camera's colour image and a colour-mapped depth image are inset in the top-right corner
+(labels keep off them).
 
 * :func:`overlay_detections` draws detections (anything matching :class:`DetectionLike`:
   world-frame points, a label and a confidence) on a frame, given the camera's intrinsics and
@@ -26,6 +29,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Iterable, Sequence
+from functools import lru_cache
 from pathlib import Path
 from typing import Any, Protocol, runtime_checkable
 
@@ -171,54 +175,137 @@ def _region_mask(uv: np.ndarray, height: int, width: int) -> tuple[np.ndarray, t
     return mask, (r0, r1, c0, c1)
 
 
-def _draw_labels(
-    frame: np.ndarray, labels: list[tuple[str, tuple[int, int, int, int], tuple[int, int, int]]]
-) -> None:
-    """Draw ``(text, (top, bottom, left, right) region box, colour)`` labels on dark boxes.
+Box = tuple[int, int, int, int]
+"""An image box (top, bottom, left, right), inclusive pixel rows and columns."""
+_LABEL_MARGIN = 2  # px kept free between a label and other labels or objects
+_RING_DIRECTIONS = 24  # directions tried around an object for a label that cannot sit next to it
 
-    Each label is centred above its region (else below it); if that overlaps a label already
-    drawn, it moves further up (or down) in label-height steps, up to 3, to the first free
-    (else the least covered) place, and a thin line in the class colour leads back to the
-    region.
+
+def _label_style(height: int) -> tuple[float, int, int]:
+    """Font scale, stroke thickness and padding (px) of labels on a frame ``height`` px high."""
+    return max(0.3, 0.42 * height / 480), max(1, round(height / 480)), 2
+
+
+def _overlap_area(boxes: np.ndarray, others: np.ndarray, margin: int) -> np.ndarray:
+    """(M,) pixels of each (M, 4) box (top, bottom, left, right) inside the (N, 4) ``others``
+    grown by ``margin`` (summed over them)."""
+    if len(others) == 0:
+        return np.zeros(len(boxes))
+    b, o = boxes[:, None, :], others[None, :, :]
+    rows = np.minimum(b[..., 1], o[..., 1] + margin) - np.maximum(b[..., 0], o[..., 0] - margin)
+    cols = np.minimum(b[..., 3], o[..., 3] + margin) - np.maximum(b[..., 2], o[..., 2] - margin)
+    return (np.clip(rows + 1, 0, None) * np.clip(cols + 1, 0, None)).sum(axis=1)
+
+
+@lru_cache(maxsize=32)
+def _place_labels(
+    sizes: tuple[tuple[int, int], ...],
+    regions: tuple[Box, ...],
+    anchors: tuple[tuple[int, int], ...],
+    keep_clear: tuple[Box, ...],
+    height: int,
+    width: int,
+) -> tuple[tuple[Box, bool], ...]:
+    """Where each label goes: ``(box, next_to_its_region)`` per label, in the given order.
+
+    Label ``i`` is ``sizes[i]`` = (width, height) px and belongs to the object in
+    ``regions[i]`` (its image box) at ``anchors[i]`` = (column, row), a pixel on it. A label
+    sits centred above its object, else below it, when that covers no object, no other label
+    and nothing of ``keep_clear`` (all kept ``_LABEL_MARGIN`` px away); otherwise it goes to
+    the nearest such free place around its object, preferring the direction away from the
+    middle of all objects (so the labels of a pile ring it), and a leader line shows which
+    object it names. Labels of objects far from that middle are placed first. Where no place
+    is free (a frame too full), the least covered one is taken. Pure and cached: the frames of
+    a video between two policy steps place the same labels once.
+    """
+    n = len(sizes)
+    obstacles = np.array(regions + keep_clear, float).reshape(-1, 4)
+    anchor = np.array(anchors, float).reshape(-1, 2)
+    middle = anchor.mean(axis=0) if n else np.zeros(2)
+    outward = np.arctan2(anchor[:, 1] - middle[1], anchor[:, 0] - middle[0])
+    far = np.hypot(*(anchor - middle).T)
+    outward[far < 1.0] = -np.pi / 2  # the middle object: upwards
+    angles = 2 * np.pi * np.arange(_RING_DIRECTIONS) / _RING_DIRECTIONS
+    placed: list[Box] = []
+    result: dict[int, tuple[Box, bool]] = {}
+    for i in sorted(range(n), key=lambda k: (-far[k], k)):
+        bw, bh = sizes[i]
+        top, bottom, left, right = regions[i]
+        x0 = int(np.clip((left + right) // 2 - bw // 2, 0, max(width - bw, 0)))
+        beside = [(top - bh - 2, x0), (bottom + 3, x0)]  # (y0, x0) above, below
+        # around: label centres on rings about the anchor, a label height apart
+        radii = np.arange(0.5 * bh + 4, np.hypot(height, width), bh + _LABEL_MARGIN)
+        turn = np.abs(np.angle(np.exp(1j * (angles - outward[i]))))  # 0 .. pi from outward
+        cx = anchor[i, 0] + np.outer(radii, np.cos(angles))
+        cy = anchor[i, 1] + np.outer(radii, np.sin(angles))
+        cost = np.outer(radii, 1.0 + turn / np.pi) + 1.0  # beside its object: cost 0, 0.5
+        y0 = np.r_[[b[0] for b in beside], np.rint(cy - bh / 2).ravel()]
+        xs = np.r_[[b[1] for b in beside], np.rint(cx - bw / 2).ravel()]
+        cost = np.r_[0.0, 0.5, cost.ravel()]
+        boxes = np.stack([y0, y0 + bh - 1, xs, xs + bw - 1], axis=1)
+        inside = (boxes[:, 0] >= 0) & (boxes[:, 1] < height) & (boxes[:, 2] >= 0)
+        inside &= boxes[:, 3] < width
+        own = np.zeros(len(boxes), bool)
+        own[:2] = True  # beside its own region by construction: only the others count
+        others = np.delete(obstacles, i, axis=0) if i < len(regions) else obstacles
+        covered = np.where(
+            own,
+            _overlap_area(boxes, others, _LABEL_MARGIN),
+            _overlap_area(boxes, obstacles, _LABEL_MARGIN),
+        )
+        covered += _overlap_area(boxes, np.array(placed, float).reshape(-1, 4), _LABEL_MARGIN)
+        free = inside & (covered == 0)
+        if free.any():
+            k = int(np.flatnonzero(free)[np.argmin(cost[free])])
+        else:  # nowhere free: the least covered place inside the frame (else anywhere)
+            pool = np.flatnonzero(inside) if inside.any() else np.arange(len(boxes))
+            k = int(pool[np.lexsort((cost[pool], covered[pool]))[0]])
+        box = tuple(int(v) for v in boxes[k])
+        placed.append(box)
+        result[i] = (box, k < 2)
+    return tuple(result[i] for i in range(n))
+
+
+def _draw_labels(
+    frame: np.ndarray,
+    labels: list[tuple[str, Box, tuple[int, int], tuple[int, int, int]]],
+    keep_clear: Sequence[Box] = (),
+) -> None:
+    """Draw ``(text, region box, anchor (column, row), colour)`` labels on dark boxes.
+
+    Where each goes is :func:`_place_labels`' choice (next to its object, else around it
+    without covering objects or other labels); a label away from its object gets a leader
+    line in the class colour from the label to a dot on the object. Lines are drawn before
+    the labels, so labels stay readable where lines cross them.
     """
     height, width = frame.shape[:2]
-    scale = max(0.3, 0.42 * height / 480)
-    thick = max(1, round(height / 480))
-    pad = 2
-    placed: list[tuple[int, int, int, int]] = []  # x0, y0, x1, y1 (inclusive)
-    for text, (top, bottom, left, right), colour in labels:
+    scale, thick, pad = _label_style(height)
+    sizes = []
+    for text, *_ in labels:
         (tw, th), base = cv2.getTextSize(text, _FONT, scale, thick)
-        bw, bh = tw + 2 * pad, th + base + 2 * pad
-        x0 = int(np.clip((left + right) // 2 - bw // 2, 0, max(width - bw, 0)))
-        above, below = top - bh - 2, bottom + 3
-        candidates = [above, below]
-        for k in range(1, 4):
-            candidates += [above - k * (bh + 1), below + k * (bh + 1)]
-        candidates = [y for y in candidates if 0 <= y <= height - bh] or [
-            int(np.clip(above, 0, max(height - bh, 0)))
-        ]
-
-        def overlap(y: int, x0: int = x0, x1: int = x0 + bw - 1, bh: int = bh) -> int:
-            """Pixels of the label at row ``y`` covered by the labels already drawn."""
-            y1 = y + bh - 1
-            return sum(
-                max(0, min(x1, a1) - max(x0, a0) + 1) * max(0, min(y1, b1) - max(y, b0) + 1)
-                for a0, b0, a1, b1 in placed
-            )
-
-        y0 = min(candidates, key=overlap)  # the first free one, else the least covered
-        box = (x0, y0, x0 + bw - 1, y0 + bh - 1)
-        if y0 not in (above, below):  # moved away from the region: a leader line back to it
-            cx = (left + right) // 2
-            if y0 < top:
-                cv2.line(frame, (cx, box[3]), (cx, top), colour, 1, cv2.LINE_AA)
-            else:
-                cv2.line(frame, (cx, box[1]), (cx, bottom), colour, 1, cv2.LINE_AA)
-        cv2.rectangle(frame, box[:2], box[2:], _TEXT_BG, cv2.FILLED)
-        cv2.rectangle(frame, box[:2], box[2:], colour, 1)
-        org = (x0 + pad, y0 + pad + th)
-        cv2.putText(frame, text, org, _FONT, scale, _TEXT_FG, thick, cv2.LINE_AA)
-        placed.append(box)
+        sizes.append((tw + 2 * pad, th + base + 2 * pad))
+    spots = _place_labels(
+        tuple(sizes),
+        tuple(box for _, box, _, _ in labels),
+        tuple(anchor for _, _, anchor, _ in labels),
+        tuple(tuple(int(v) for v in b) for b in keep_clear),
+        height,
+        width,
+    )
+    for (_, _, anchor, colour), ((top, bottom, left, right), beside) in zip(
+        labels, spots, strict=True
+    ):
+        if not beside:
+            start = (int(np.clip(anchor[0], left, right)), int(np.clip(anchor[1], top, bottom)))
+            cv2.line(frame, start, anchor, colour, 1, cv2.LINE_AA)
+            cv2.circle(frame, anchor, 2, colour, cv2.FILLED, cv2.LINE_AA)
+    for (text, _, _, colour), ((top, bottom, left, right), _) in zip(labels, spots, strict=True):
+        cv2.rectangle(frame, (left, top), (right, bottom), _TEXT_BG, cv2.FILLED)
+        cv2.rectangle(frame, (left, top), (right, bottom), colour, 1)
+        (_, th), _ = cv2.getTextSize(text, _FONT, scale, thick)
+        cv2.putText(
+            frame, text, (left + pad, top + pad + th), _FONT, scale, _TEXT_FG, thick, cv2.LINE_AA
+        )
 
 
 def overlay_detections(
@@ -227,6 +314,7 @@ def overlay_detections(
     K: np.ndarray,
     world_from_camera: np.ndarray,
     alpha: float = 0.45,
+    keep_clear: Sequence[Box] = (),
 ) -> np.ndarray:
     """A copy of ``frame`` with each detection tinted by its class colour, outlined, labelled.
 
@@ -235,7 +323,10 @@ def overlay_detections(
     (:func:`class_colors`) as ``(1 - alpha) * frame + alpha * colour``, outlined (2 px, class
     colour; inspected: the same line with 1 px white edges either side) and labelled
     ``"<label> <confidence:.2f>"`` (``" *"`` appended if inspected) on a dark box above the
-    region. Detections are drawn in the given order (later ones on top); labels last.
+    region, else below it; where both would cover another object or label (a pile), around
+    it, with a leader line to the object: labels never cover each other or an object while
+    the frame has room. Detections are drawn in the given order (later ones on top); labels
+    last.
     Points behind the camera, non-finite or outside the image are ignored; a detection
     with none left is skipped.
 
@@ -247,6 +338,8 @@ def overlay_detections(
     K : (3, 3) camera matrix of ``frame`` (px).
     world_from_camera : (4, 4) pose of ``frame``'s camera (m), OpenCV convention.
     alpha : opacity of the tint, in [0, 1].
+    keep_clear : image boxes (top, bottom, left, right), px, that labels do not cover (e.g.
+        where :func:`compose_frame` puts its insets).
 
     Returns
     -------
@@ -284,9 +377,18 @@ def overlay_detections(
         box = (r0 + rows.min(), r0 + rows.max(), c0 + cols.min(), c0 + cols.max())
         box = tuple(int(b) for b in box)
         text = f"{det.label} {float(det.confidence):.2f}" + (" *" if inspected else "")
-        labels.append((text, box, colour))
-    _draw_labels(out, labels)
+        labels.append((text, box, _anchor(sel, r0, c0), colour))
+    _draw_labels(out, labels, keep_clear)
     return out
+
+
+def _anchor(mask: np.ndarray, row0: int, col0: int) -> tuple[int, int]:
+    """(column, row) of a region's pixel for its leader line: its centroid if that is on it,
+    else its pixel nearest the centroid (``mask`` a boolean ROI at ``row0``, ``col0``)."""
+    rows, cols = np.nonzero(mask)
+    r, c = rows.mean(), cols.mean()
+    k = int(np.argmin((rows - r) ** 2 + (cols - c) ** 2))
+    return int(col0 + cols[k]), int(row0 + rows[k])
 
 
 def _colorize_depth(depth: np.ndarray) -> np.ndarray:
@@ -344,23 +446,31 @@ def compose_frame(
         insets.append((np.asarray(wrist_depth, np.float32), cv2.INTER_NEAREST))
     if not insets:
         return out
-    margin = max(2, round(0.01 * width))
-    ih, iw = insets[0][0].shape[:2]
-    w_in = max(2, round(inset_scale * width))
-    h_in = max(2, round(w_in * ih / iw))
-    room = (height - margin * (len(insets) + 1)) // len(insets)
-    if h_in > room:  # keep them inside the frame
-        h_in = max(2, room)
-        w_in = max(2, round(h_in * iw / ih))
-    x0, y0 = width - margin - w_in, margin
-    for image, interp in insets:
+    places = _inset_places(height, width, insets[0][0].shape[:2], len(insets), inset_scale)
+    for (image, interp), (y0, x0, h_in, w_in) in zip(insets, places, strict=True):
         small = cv2.resize(image, (w_in, h_in), interpolation=interp)
         if small.ndim == 2:
             small = _colorize_depth(small)
         out[y0 : y0 + h_in, x0 : x0 + w_in] = small
         cv2.rectangle(out, (x0 - 1, y0 - 1), (x0 + w_in, y0 + h_in), (255, 255, 255), 1)
-        y0 += h_in + margin
     return out
+
+
+def _inset_places(
+    height: int, width: int, inset_shape: tuple[int, int], n: int, inset_scale: float
+) -> list[tuple[int, int, int, int]]:
+    """(row, column, height, width) px of :func:`compose_frame`'s ``n`` insets of images
+    ``inset_shape`` (rows, columns) on a ``height`` x ``width`` overview, top to bottom."""
+    margin = max(2, round(0.01 * width))
+    ih, iw = inset_shape
+    w_in = max(2, round(inset_scale * width))
+    h_in = max(2, round(w_in * ih / iw))
+    room = (height - margin * (n + 1)) // n
+    if h_in > room:  # keep them inside the frame
+        h_in = max(2, room)
+        w_in = max(2, round(h_in * iw / ih))
+    x0 = width - margin - w_in
+    return [(margin + k * (h_in + margin), x0, h_in, w_in) for k in range(n)]
 
 
 def _semantic_frame(
@@ -375,13 +485,18 @@ def _semantic_frame(
     """Composed ``frame`` (``camera``'s render of the unwrapped sorting ``env``) or None."""
     if frame is None:
         return None
+    obs = observation or {}
+    wrist = [obs.get("wrist_rgb"), obs.get("wrist_depth")]
     if detections:
         height, width = frame.shape[:2]
         K = intrinsics(env.model, camera, width, height).K
         pose = camera_pose(env.model, env.data, camera)
-        frame = overlay_detections(frame, detections, K, pose, alpha)
-    obs = observation or {}
-    return compose_frame(frame, obs.get("wrist_rgb"), obs.get("wrist_depth"), inset_scale)
+        shown = [np.shape(image)[:2] for image in wrist if image is not None]
+        insets = _inset_places(height, width, shown[0], len(shown), inset_scale) if shown else []
+        # labels stay off the insets (1 px border included)
+        clear = [(y - 1, y + h, x - 1, x + w) for y, x, h, w in insets]
+        frame = overlay_detections(frame, detections, K, pose, alpha, keep_clear=clear)
+    return compose_frame(frame, wrist[0], wrist[1], inset_scale)
 
 
 class SemanticVideoRecorder(VideoRecorder):

@@ -118,6 +118,19 @@ class SortingEvalConfig:
                 raise SortingEvalError(f"unknown {kind} {bad[0]!r}; valid: {', '.join(valid)}")
         if not self.seeds or any(int(s) < 0 for s in self.seeds):
             raise SortingEvalError(f"seeds must be non-negative integers, got {self.seeds!r}")
+        # an episode is keyed by (scene, policy, seed): a repeated seed would run twice and
+        # leave two records of one episode in episodes.jsonl (which the report refuses)
+        for kind, seeds in (("seeds", self.seeds), ("validation_seeds", self.validation_seeds)):
+            counts = Counter(int(s) for s in seeds)
+            repeated = sorted(s for s, n in counts.items() if n > 1)
+            if repeated:
+                once = ",".join(map(str, counts))  # first occurrences, in the given order
+                fix = f"--seeds {once}" if kind == "seeds" else f"validation_seeds=({once})"
+                raise SortingEvalError(
+                    f"{kind} repeat: {', '.join(map(str, repeated))} given more than once (each "
+                    f"episode runs once per scene, policy and seed); give each seed once, e.g. "
+                    f"{fix}"
+                )
         if set(self.seeds) & set(self.validation_seeds):
             raise SortingEvalError(
                 "validation seeds overlap the test seeds: "
@@ -126,6 +139,11 @@ class SortingEvalConfig:
             )
         if self.backend not in BACKENDS:
             raise SortingEvalError(f"backend {self.backend!r}; valid: {', '.join(BACKENDS)}")
+        if self.ray_address is not None and self.backend != "ray":
+            raise SortingEvalError(
+                f"a Ray address ({self.ray_address!r}) is used by the ray backend only, and the "
+                f"backend is {self.backend!r}; add --backend ray, or drop --ray-address"
+            )
         if self.workers < 1:
             raise SortingEvalError(f"workers must be >= 1, got {self.workers}")
         if self.fusion not in FUSIONS:
@@ -257,7 +275,13 @@ def prepare_models(
     """Trained models and validated thresholds for ``config.policies`` (cached in ``cache``;
     ``progress``: a bar over the validation episodes when a threshold must be chosen)."""
     cache = Path(cache)
-    cache.mkdir(parents=True, exist_ok=True)
+    try:
+        cache.mkdir(parents=True, exist_ok=True)
+    except (FileExistsError, NotADirectoryError) as err:
+        raise SortingEvalError(
+            f"the cache {cache} is not a folder ({err.filename} is a file); pass a folder path "
+            "(created if missing), or move the file away"
+        ) from err
     with threadpool_limits(1):
         wanted = ("gp", "svm") if "svm-ipm" in config.policies else ("gp",)
         models = trained_models(cache, config.perception, CATEGORIES, wanted)

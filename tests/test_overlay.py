@@ -162,6 +162,75 @@ def test_compose_frame_insets_in_corner():
     assert compose_frame(np.zeros((481, 641, 3), np.uint8), wrist).shape == (482, 642, 3)
 
 
+def _pile(n: int = 15) -> list[Det]:
+    """``n`` balls 3 cm in radius, 7 cm apart (~17 px at 2 m) in rows of 5 at the image centre."""
+    return [
+        Det(
+            _ball([-0.14 + 0.07 * (k % 5), -0.07 + 0.07 * (k // 5), 2.0], 0.03, 300, k),
+            CATEGORIES[k % len(CATEGORIES)],
+            0.5 + k / 40,
+            inspected=k % 4 == 0,
+        )
+        for k in range(n)
+    ]
+
+
+def _label_boxes(out: np.ndarray) -> list[tuple[int, int, int, int]]:
+    """(x, y, w, h) of each label's dark background (nothing else in these frames is as dark;
+    the holes of letters, a few pixels high, are left out)."""
+    dark = np.all(out == (24, 24, 24), axis=2).astype(np.uint8)
+    n, _, stats, _ = cv2.connectedComponentsWithStats(dark, connectivity=4)
+    return [tuple(int(v) for v in s[:4]) for s in stats[1:n] if s[3] > 10]
+
+
+def test_labels_of_a_pile_neither_overlap_nor_cover_the_objects():
+    dets = _pile()
+    frame = np.full((H, W, 3), 100, np.uint8)
+    out = overlay_detections(frame, dets, K, np.eye(4))
+    boxes = _label_boxes(out)
+    # one whole background per label: a label covering another would cut or merge them
+    assert len(boxes) == len(dets)
+    heights = {h for _, _, _, h in boxes}
+    assert len(heights) == 1  # every label whole (all texts are as high)
+    expected = sorted(
+        cv2.getTextSize(
+            f"{d.label} {d.confidence:.2f}" + (" *" if d.inspected else ""),
+            cv2.FONT_HERSHEY_SIMPLEX,
+            0.42,
+            1,
+        )[0][0]
+        + 2
+        for d in dets
+    )
+    assert sorted(w for _, _, w, _ in boxes) == expected
+    for a, (x, y, w, h) in enumerate(boxes):  # apart, borders (1 px) included
+        for xb, yb, wb, hb in boxes[a + 1 :]:
+            assert (
+                x + w + 1 < xb - 1
+                or xb + wb + 1 < x - 1
+                or y + h + 1 < yb - 1
+                or yb + hb + 1 < y - 1
+            )
+    # no label (border included) on any pixel an object projects to
+    covered = np.zeros((H, W), bool)
+    for x, y, w, h in boxes:
+        covered[y - 1 : y + h + 1, x - 1 : x + w + 1] = True
+    for det in dets:
+        uv, _ = project_points(det.points, K, np.eye(4))
+        cols, rows = np.rint(uv).astype(int).T
+        assert not covered[rows, cols].any(), det.label
+
+
+def test_labels_stay_off_keep_clear_boxes():
+    dets = _pile()
+    frame = np.full((H, W, 3), 100, np.uint8)
+    clear = (0, 239, 0, W - 1)  # the whole upper half
+    out = overlay_detections(frame, dets, K, np.eye(4), keep_clear=[clear])
+    boxes = _label_boxes(out)
+    assert len(boxes) == len(dets)
+    assert all(y - 1 > clear[1] for _, y, _, _ in boxes)
+
+
 # -- with the real environment ------------------------------------------------------------------
 def _make_env():
     return gym.make("ipbench/Sorting-v1", scene="uncluttered", render_mode="rgb_array")

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import re
 from dataclasses import replace
 from pathlib import Path
 
@@ -166,11 +167,29 @@ def test_evaluation_with_video_writes_a_decodable_mp4(tmp_path, prepared) -> Non
         ({"seeds": (1000,)}, "overlap the test seeds"),
         ({"seeds": (-1,)}, "non-negative"),
         ({"backend": "dask"}, "valid: process, ray"),
+        ({"seeds": (3, 3, 4)}, r"seeds repeat: 3 given more than once.*--seeds 3,4$"),
+        ({"seeds": (5, 3, 5, 3, 4)}, r"seeds repeat: 3, 5 .*--seeds 5,3,4$"),
+        ({"validation_seeds": (1000, 1001, 1000)}, r"validation_seeds repeat: 1000 "),
+        ({"ray_address": "auto"}, "ray backend only.*add --backend ray, or drop --ray-address"),
     ],
 )
 def test_bad_settings_say_what_is_valid(changes, message) -> None:
     with pytest.raises(SortingEvalError, match=message):
         SortingEvalConfig(**changes)
+
+
+def test_a_ray_address_goes_with_the_ray_backend() -> None:
+    assert SortingEvalConfig(backend="ray", ray_address="auto").ray_address == "auto"
+
+
+def test_a_file_in_place_of_the_cache_is_reported(tmp_path) -> None:
+    blocker = tmp_path / "file"
+    blocker.write_text("")
+    for cache in (blocker, blocker / "sub"):
+        with pytest.raises(
+            SortingEvalError, match=rf"cache {re.escape(str(cache))} is not a folder"
+        ):
+            sorting.prepare_models(cache, FAST)
 
 
 def test_an_unwritable_output_folder_is_reported(tmp_path, prepared) -> None:
