@@ -39,8 +39,10 @@ from ipbench.envs.layout import SCENES
 from ipbench.envs.sorting import workcell_places
 from ipbench.eval.files import ensure_writable
 from ipbench.eval.perception import PerceptionEvalConfig, model_key, trained_models
+from ipbench.eval.schedule import longest_first, single_thread_worker, task_cost
 from ipbench.eval.sorting_report import ThresholdSweep, load_episodes, write_report
 from ipbench.policies import (
+    EVAL_CAMERAS,
     FUSIONS,
     INTERACTIVE,
     POLICIES,
@@ -326,6 +328,7 @@ def _run_episode(task: Task, models: PolicyModels, config: SortingEvalConfig) ->
         render_mode="rgb_array" if task.video else None,
         max_steps=config.steps_per_object * n_objects + 10,
         depth_noise=config.perception.dataset.sensor,
+        cameras=EVAL_CAMERAS,
     )
     policy = make_policy(task.policy, models, config.n_views, config.fusion)
     recorder = None
@@ -399,11 +402,17 @@ _WORKER: dict = {}
 
 
 def _init_worker(models: PolicyModels, config: SortingEvalConfig) -> None:
+    single_thread_worker()  # W workers on W cores (see ipbench.eval.schedule)
     _WORKER["models"], _WORKER["config"] = models, config
 
 
 def _worker_episode(task: Task) -> dict:
     return run_episode(task, _WORKER["models"], _WORKER["config"])
+
+
+def _single_threaded_episode(task: Task, models: PolicyModels, config: SortingEvalConfig):
+    single_thread_worker()  # a Ray worker: one core, one thread per library
+    return run_episode(task, models, config)
 
 
 def _run_serial(tasks, models, config) -> Iterator[dict]:
@@ -419,7 +428,7 @@ def _run_processes(tasks, models, config) -> Iterator[dict]:
     with ProcessPoolExecutor(
         config.workers, mp_context=ctx, initializer=_init_worker, initargs=(models, config)
     ) as pool:
-        futures = [pool.submit(_worker_episode, t) for t in tasks]
+        futures = [pool.submit(_worker_episode, t) for t in _longest_first(tasks)]
         for future in as_completed(futures):
             yield future.result()
 
@@ -443,15 +452,20 @@ def _run_ray(tasks, models, config) -> Iterator[dict]:
             runtime_env={"env_vars": {"MUJOCO_GL": os.environ.get("MUJOCO_GL", "egl")}},
         )
     try:
-        remote = ray.remote(num_cpus=1)(run_episode)
+        remote = ray.remote(num_cpus=1)(_single_threaded_episode)
         models_ref, config_ref = ray.put(models), ray.put(config)
-        pending = [remote.remote(t, models_ref, config_ref) for t in tasks]
+        pending = [remote.remote(t, models_ref, config_ref) for t in _longest_first(tasks)]
         while pending:
             done, pending = ray.wait(pending, num_returns=1)
             yield ray.get(done[0])
     finally:
         if started:
             ray.shutdown()
+
+
+def _longest_first(tasks: list[Task]) -> list[Task]:
+    """The tasks, longest expected episode first (:mod:`ipbench.eval.schedule`)."""
+    return longest_first(tasks, lambda t: task_cost(SCENES[t.scene].n_objects, t.policy))
 
 
 def _executor(config: SortingEvalConfig) -> Callable:
@@ -491,6 +505,18 @@ def _drop_partial_line(log: Path) -> None:
         print(f"ipbench: {log}: dropping an unfinished last record (it will be run again)")
         with log.open("r+b") as f:
             f.truncate(cut)
+
+
+def _sort_log(log: Path) -> None:
+    """Rewrite the episode log in (scene, policy, seed) order, atomically: workers finish in
+    any order, the log of a finished run does not depend on it."""
+    if not log.exists():
+        return
+    records = load_episodes(log)
+    records.sort(key=lambda e: (e["scene"], e["policy"], int(e["seed"])))
+    tmp = log.with_suffix(".jsonl.tmp")
+    tmp.write_text("".join(json.dumps(e) + "\n" for e in records))
+    os.replace(tmp, log)
 
 
 def run_sorting_eval(
@@ -552,6 +578,7 @@ def run_sorting_eval(
             os.fsync(f.fileno())
             bar.set_postfix_str(f"{record['scene']} {record['policy']} {record['accuracy']:.0%}")
             bar.update()
+    _sort_log(log)
     episodes = [
         e
         for e in load_episodes(log)

@@ -15,6 +15,7 @@ import pytest
 import ipbench.envs  # noqa: F401
 import ipbench.eval.sorting as sorting
 from ipbench.assets.objects import CATEGORIES
+from ipbench.envs.layout import SCENES
 from ipbench.envs.sorting import workcell_places
 from ipbench.eval.sorting import SortingEvalConfig, SortingEvalError, Task, run_sorting_eval
 from ipbench.perception.classifiers import make_classifier
@@ -91,6 +92,14 @@ def test_every_policy_runs_an_episode_to_its_end(policy: str, models) -> None:
         assert record["wrong_bin"] == 0
 
 
+def test_longest_episodes_are_scheduled_first_in_a_fixed_order() -> None:
+    tasks = [Task(scene, policy, s) for scene in SCENES for policy in POLICIES for s in (0, 1)]
+    order = sorting._longest_first(tasks)
+    assert order == sorting._longest_first(list(tasks)) and set(order) == set(tasks)
+    first, last = order[0], order[-1]
+    assert SCENES[first.scene].n_objects > SCENES[last.scene].n_objects
+
+
 def test_serial_process_and_ray_runs_give_identical_episodes(models) -> None:
     pytest.importorskip("ray")
     tasks = [Task("uncluttered", "random", s) for s in (2, 3)]
@@ -136,7 +145,10 @@ def test_an_interrupted_evaluation_resumes_without_repeating(tmp_path, prepared,
             for x in lines[:2]
         }
     )
-    assert len(log.read_text().splitlines()) == 4
+    keys = [
+        (e["scene"], e["policy"], e["seed"]) for e in map(json.loads, log.read_text().splitlines())
+    ]
+    assert keys == sorted(keys) and len(keys) == 4  # the finished log, in canonical order
     assert summary["uncluttered"]["random"]["n"] == 2
     assert {"accuracy_mean", "ci_low", "ci_high", "n"} <= set(summary["uncluttered"]["gp-ipm"])
     assert (tmp_path / "sorting.md").read_text().count("| random |") == 1
