@@ -1,9 +1,16 @@
-"""``ipbench bench eval``: sorting episodes per minute for each policy, 1 and 2 workers.
+"""``ipbench bench eval``: sorting episodes per minute, 1 and 2 workers, and v1 vs v2 episodes.
 
-Each measurement runs ``episodes`` cluttered episodes (seeds 0, 1, ...) of one policy through
-the same executors as ``ipbench eval sorting`` — serially, then in 2 worker processes — with
-models and thresholds from the cache. Keys: ``<policy>_w1_episodes_per_min`` and
-``<policy>_w2_episodes_per_min``.
+Each rate runs ``episodes`` cluttered episodes (seeds 0, 1, ...) of one policy through the same
+executors as ``ipbench eval sorting`` — serially, then in 2 worker processes — with models and
+thresholds from the cache. Keys:
+
+- ``<policy>_w1_episodes_per_min``, ``<policy>_w2_episodes_per_min`` for each policy asked
+  for, and ``episodes_per_min_1``, ``episodes_per_min_2`` (GP-IPM's, always measured) with
+  ``speedup_2_workers`` = their ratio (2 on 2 cores is perfect scaling);
+- ``episode_s_v1``, ``episode_s_v2``: mean wall seconds of the same cluttered ``oracle``
+  episodes (true labels: no threshold, the same segmentation and grasping code) on
+  ``ipbench/Sorting-v1`` and ``ipbench/Sorting-v2`` (under development), one worker, measured
+  one after the other in this run; ``episode_speedup_v2`` = v1 / v2.
 """
 
 from __future__ import annotations
@@ -22,6 +29,8 @@ from ipbench.eval.sorting import (
 
 __all__ = ["bench_eval", "check_bench_eval"]
 
+_V1, _V2 = "ipbench/Sorting-v1", "ipbench/Sorting-v2"
+
 
 def check_bench_eval(policies: tuple[str, ...], episodes: int) -> SortingEvalConfig:
     """The configuration :func:`bench_eval` measures, checked before any work.
@@ -35,26 +44,49 @@ def check_bench_eval(policies: tuple[str, ...], episodes: int) -> SortingEvalCon
             f"episodes must be between 1 and {first_validation} (seeds 0 .. episodes - 1, below "
             f"the validation seeds), got {episodes}"
         )
-    return SortingEvalConfig(
-        scenes=("cluttered",), policies=tuple(policies), seeds=tuple(range(episodes))
-    )
+    SortingEvalConfig(scenes=("cluttered",), policies=tuple(policies))  # names checked
+    wanted = tuple(dict.fromkeys((*policies, "gp-ipm", "oracle")))
+    return SortingEvalConfig(scenes=("cluttered",), policies=wanted, seeds=tuple(range(episodes)))
+
+
+def _with_env(config: SortingEvalConfig, env_id: str) -> SortingEvalConfig:
+    """``config`` whose episodes run on ``env_id`` (its own objects and sensor)."""
+    perception = config.perception
+    dataset = replace(perception.dataset, env_id=env_id, depth_noise=None)
+    return replace(config, perception=replace(perception, dataset=dataset))
+
+
+def _minutes(config: SortingEvalConfig, tasks: list[Task], models) -> float:
+    t0 = time.perf_counter()
+    for _ in _executor(config)(tasks, models, config):
+        pass
+    return (time.perf_counter() - t0) / 60.0
 
 
 def bench_eval(
     cache: Path, policies: tuple[str, ...] = ("random", "gp-ipm"), episodes: int = 4
 ) -> dict[str, float]:
-    """Episodes per minute per policy and worker count (see the module docstring); bad
-    settings raise before any work (:func:`check_bench_eval`)."""
+    """The figures of the module docstring; bad settings raise before any work
+    (:func:`check_bench_eval`)."""
     base = check_bench_eval(policies, episodes)
     models, _ = prepare_models(cache, base)
     figures: dict[str, float] = {}
-    for policy in policies:
-        tasks = [Task("cluttered", policy, seed) for seed in range(episodes)]
+    seeds = range(episodes)
+    for policy in dict.fromkeys((*policies, "gp-ipm")):
+        tasks = [Task("cluttered", policy, seed) for seed in seeds]
         for workers in (1, 2):
             config = replace(base, policies=(policy,), workers=workers)
-            t0 = time.perf_counter()
-            for _ in _executor(config)(tasks, models, config):
-                pass
-            minutes = (time.perf_counter() - t0) / 60.0
-            figures[f"{policy}_w{workers}_episodes_per_min"] = round(episodes / minutes, 2)
+            rate = round(episodes / _minutes(config, tasks, models), 2)
+            if policy in policies:
+                figures[f"{policy}_w{workers}_episodes_per_min"] = rate
+            if policy == "gp-ipm":
+                figures[f"episodes_per_min_{workers}"] = rate
+    figures["speedup_2_workers"] = round(
+        figures["episodes_per_min_2"] / figures["episodes_per_min_1"], 2
+    )
+    oracle = [Task("cluttered", "oracle", seed) for seed in seeds]
+    for tag, env_id in (("v1", _V1), ("v2", _V2)):
+        config = _with_env(replace(base, policies=("oracle",), workers=1), env_id)
+        figures[f"episode_s_{tag}"] = round(60.0 * _minutes(config, oracle, models) / episodes, 2)
+    figures["episode_speedup_v2"] = round(figures["episode_s_v1"] / figures["episode_s_v2"], 2)
     return figures

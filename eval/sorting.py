@@ -321,13 +321,13 @@ def run_episode(task: Task, models: PolicyModels, config: SortingEvalConfig) -> 
 
 def _run_episode(task: Task, models: PolicyModels, config: SortingEvalConfig) -> dict:
     t0 = time.perf_counter()
-    n_objects = SCENES[task.scene].n_objects
+    n_objects, dataset = SCENES[task.scene].n_objects, config.perception.dataset
     env = gym.make(
-        "ipbench/Sorting-v1",
+        dataset.env_id,  # the objects and sensor the models were trained on
         scene=task.scene,
         render_mode="rgb_array" if task.video else None,
         max_steps=config.steps_per_object * n_objects + 10,
-        depth_noise=config.perception.dataset.sensor,
+        depth_noise=dataset.sensor,
         cameras=EVAL_CAMERAS,
     )
     policy = make_policy(task.policy, models, config.n_views, config.fusion)
