@@ -29,6 +29,7 @@ __all__ = [
     "noisy_depth_into",
     "pair_with_reciprocal_into",
     "projector_lit_into",
+    "seen_dots_into",
 ]
 
 _jit = numba.njit(cache=True, nogil=True, error_model="numpy")
@@ -115,6 +116,22 @@ def pair_with_reciprocal_into(d, pair):
         pair[2 * i] = d[i]
         pair[2 * i + 1] = one / d[i]
     return pair
+
+
+@_jit
+def seen_dots_into(d, pattern, sign, dots):
+    """(H, W) float32: ``pattern[v, rint(u - sign d)]``, the column wrapped (as ``cv2.remap``
+    nearest with ``BORDER_WRAP``, which rounds half to even): the projector dot seen at each
+    camera pixel (a table look-up: scalar, unlike the element-wise kernels)."""
+    h, w = d.shape
+    sgn = _f32(sign)
+    for r in range(h):
+        for k in range(w):
+            col = int(np.rint(_f32(k) - sgn * d[r, k]))
+            if col < 0 or col >= w:
+                col %= w
+            dots[r, k] = pattern[r, col]
+    return dots
 
 
 @_jit

@@ -239,6 +239,14 @@ def _normal_quantiles(n: int) -> np.ndarray:
     return q / q.std()
 
 
+def _random_words(rng: np.random.Generator, n: int) -> np.ndarray:
+    """(n,) uint64 uniform words: ``rng.integers(0, 2**64 - 1, endpoint=True)``, read straight
+    from a 64-bit bit generator (the same words and state, ~1.5x faster)."""
+    if isinstance(rng.bit_generator, (np.random.PCG64, np.random.PCG64DXSM, np.random.SFC64)):
+        return rng.bit_generator.random_raw(n)
+    return rng.integers(0, 2**64 - 1, size=n, dtype=np.uint64, endpoint=True)
+
+
 def _workspace(h: int, w: int) -> SimpleNamespace:
     """Scratch buffers for one image shape (fresh large arrays cost page faults every frame)."""
     kinds = dict.fromkeys("cos f1 f2 f3 lut noisy".split(), np.float32) | {"level": np.uint8}
@@ -359,7 +367,7 @@ class DepthNoiseModel:
         cosv = _cos_incidence(z, fx, fy, cx, cy, ws.cos, ws.f1, ws.f2)
         level = cv2.convertScaleAbs(cosv, dst=ws.level, alpha=255.0)  # rint(cos(theta) * 255)
         # 8 random bytes per pixel, planar: 2 axial noise, 4 lateral offsets, 1 edge drop-out.
-        raw = rng.integers(0, 2**64 - 1, size=n, dtype=np.uint64, endpoint=True).view(np.uint8)
+        raw = _random_words(rng, n).view(np.uint8)
 
         # Axial noise, then disparity quantisation.
         angle_term = cv2.LUT(level, self._angle_lut, dst=ws.lut)

@@ -278,10 +278,7 @@ class BlockMatcher:
         _k.pair_with_reciprocal_into(d.reshape(-1), f["pair"])  # maxima: max d and 1 / min d
         cv2.dilate(ws.pair, self._kernel, dst=ws.pair9)
         cv2.dilate(cv2.extractChannel(ws.pair9, 0), self._kernel, dst=ws.dmax17)
-        u, v = _grid((h, w))
-        map_x = cv2.scaleAdd(d, float(-sign), u, dst=ws.w)
-        pattern = dot_pattern((h, w), self.cell_px, self.seed)
-        cv2.remap(pattern, map_x, v, cv2.INTER_NEAREST, dst=ws.dots, borderMode=cv2.BORDER_WRAP)
+        _k.seen_dots_into(d, dot_pattern((h, w), self.cell_px, self.seed), sign, ws.dots)
         tol, dflat = self.surface_tol_px, d.reshape(-1)
         terms = (f["dots"], slope.reshape(-1), tol, f["pair9"], f["dmax17"], f["stack"])
         _k.match_weights_into(dflat, *terms, f["single"])

@@ -203,3 +203,14 @@ def test_invalid_input_and_config():
     with pytest.raises(SensorError, match=r"\[0, 1\]"):
         DepthNoiseConfig(edge_dropout=1.5)
     assert issubclass(SensorError, ValueError)
+
+
+@pytest.mark.parametrize("bit_generator", [np.random.PCG64, np.random.SFC64, np.random.MT19937])
+def test_random_words_are_the_generators_integers(bit_generator):
+    from ipbench.envs.depth_noise import _random_words
+
+    a, b = np.random.Generator(bit_generator(7)), np.random.Generator(bit_generator(7))
+    words = _random_words(a, 999)
+    expected = b.integers(0, 2**64 - 1, size=999, dtype=np.uint64, endpoint=True)
+    np.testing.assert_array_equal(words, expected)
+    assert a.random() == b.random()  # and the stream goes on alike
