@@ -17,6 +17,8 @@ import os
 import sys
 from pathlib import Path
 
+from ipbench.eval.check import add_check_parser, main_check
+
 __all__ = ["main", "build_parser"]
 
 
@@ -232,6 +234,7 @@ def build_parser() -> argparse.ArgumentParser:
         "--cache", type=Path, default=Path("results/cache"), help="model cache folder"
     )
     _add_json_option(bench_eval)
+    add_check_parser(sub)
     return parser
 
 
@@ -313,6 +316,8 @@ def main(argv: list[str] | None = None) -> int:
     os.environ.setdefault("MUJOCO_GL", "egl")
     os.environ.setdefault("PYOPENGL_PLATFORM", "egl")
     args = build_parser().parse_args(argv)
+    if args.command == "check":
+        return main_check(args)
     if args.command == "demo":
         from ipbench.eval.demo import run_demo
 
