@@ -365,7 +365,7 @@ def _stage_render_reset() -> tuple[dict[str, str], dict[str, float]]:
 def synthetic_depth_images() -> dict[str, tuple[np.ndarray, np.ndarray | None]]:
     """Five synthetic 480x640 z-depth images (m) and specular masks: planes at 1.2 m, a plane
     tilted by 40 deg, a scene of boxes with holes and out-of-range depth, with and without
-    specular patches (those of ``tests/test_structured_light.py``'s ``v1_images``)."""
+    specular patches (the sensor tests' stored digests were recorded on them)."""
     import math
 
     h, w = IMAGE_SIZE

@@ -28,6 +28,7 @@ from ipbench.envs.depth_noise import (
 )
 from ipbench.envs.sensors import SensorRenderer, intrinsics
 from ipbench.envs.structured_light import projector_lit, projector_visible
+from ipbench.eval.digests import synthetic_depth_images
 
 H, W, F, B = 480, 640, 570.0, 0.075
 U = ((np.arange(W) - (W - 1) / 2) / F)[None, :]
@@ -222,25 +223,9 @@ def test_deterministic_for_a_seed():
 
 
 def v1_images() -> dict:
-    """The synthetic images whose v1 output digests are stored (recorded before this module)."""
-    b = math.radians(40)
-    tilted = (1.3 * math.cos(b) / (math.sin(b) * U + math.cos(b))).astype(np.float32)
-    tilted = np.broadcast_to(tilted, (H, W)).copy()
-    scene = tilted.copy()
-    scene[100:200, 100:300] = 0.9
-    scene[300:380, 400:460] = 0.6
-    scene[:, :20] = 0
-    scene[400:, 500:] = 4.0
-    spec = np.zeros((H, W), bool)
-    spec[300:400, 300:500] = True
-    spec[120:180, 150:250] = True
-    return {
-        "plane_1.2m": (plane(1.2), None),
-        "tilted_40deg": (tilted, None),
-        "scene": (scene, None),
-        "scene_specular": (scene, spec),
-        "plane_specular": (plane(1.2), spec),
-    }
+    """The synthetic images whose v1 output digests are stored (recorded before this module);
+    ``ipbench check`` digests the same ones."""
+    return synthetic_depth_images()
 
 
 def test_v1_default_output_unchanged():
