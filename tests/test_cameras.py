@@ -9,18 +9,12 @@ import gymnasium as gym
 import numpy as np
 import pytest
 from gymnasium.utils.env_checker import check_env
+from small_models import small_models
 
 import ipbench.envs
-from ipbench.assets.objects import CATEGORIES
 from ipbench.envs.sensors import SensorRenderer
 from ipbench.envs.sorting import CAMERAS, COMMANDS, WRIST_CAMERA, SortingConfig
-from ipbench.perception.classifiers import make_classifier
-from ipbench.perception.cloud import depth_to_points
-from ipbench.perception.features import Codebook, fpfh
-from ipbench.perception.model import PerceptionModel
-from ipbench.perception.segmentation import segment_scene
 from ipbench.policies import EVAL_CAMERAS, INTERACTIVE, POLICIES, PolicyModels, make_policy
-from ipbench.policies.oracle import true_category
 from ipbench.policies.scripted import GroundTruthSorter
 
 HEAD_KEYS = {f"head_{side}{suffix}" for side in ("left", "right") for suffix in ("", "_K", "_pose")}
@@ -145,29 +139,7 @@ def test_check_env_passes_without_the_head():
 def models() -> PolicyModels:
     """A small real model from the segments of a few wrist views (as the evaluation's tests),
     with thresholds no view reaches: the interactive policies inspect in hand."""
-    env = gym.make("ipbench/Sorting-v1", scene="uncluttered", cameras=EVAL_CAMERAS)
-    views, labels = [], []
-    for seed in (500, 501):
-        obs, info = env.reset(seed=seed)
-        cloud = depth_to_points(obs["wrist_depth"], obs["wrist_K"], obs["wrist_pose"])
-        for s in segment_scene(cloud).segments:
-            truth = true_category(s.pixels, info)
-            if truth is not None:
-                views.append(fpfh(s.points, viewpoint=obs["wrist_pose"][:3, 3]))
-                labels.append(CATEGORIES.index(truth))
-    env.close()
-    codebook = Codebook.fit(np.concatenate(views), 16, seed=0)
-    X = np.stack([codebook.encode(v) for v in views])
-    y = np.array(labels)
-    gp = make_classifier("gp", 5).fit(X, y).model_
-    svm = make_classifier("svm", 5).fit(np.concatenate([X] * 3), np.concatenate([y] * 3))
-    area = tuple(float(v) for v in ipbench.envs.sorting.workcell_places().inspection_area.center)
-    return PolicyModels(
-        gp=PerceptionModel(CATEGORIES, codebook, gp, "test-gp"),
-        svm=PerceptionModel(CATEGORIES, codebook, svm, "test-svm"),
-        inspection_area=area,
-        thresholds={"gp": 1.0, "svm": 1.0},
-    )
+    return small_models((500, 501), 16, 1.0, cameras=EVAL_CAMERAS)
 
 
 def test_every_policy_acts_on_the_evaluation_cameras_alone(models):

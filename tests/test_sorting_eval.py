@@ -7,24 +7,16 @@ import re
 from dataclasses import replace
 from pathlib import Path
 
-import gymnasium as gym
 import imageio.v2 as imageio
 import numpy as np
 import pytest
+from small_models import small_models
 
 import ipbench.envs  # noqa: F401
 import ipbench.eval.sorting as sorting
-from ipbench.assets.objects import CATEGORIES
 from ipbench.envs.layout import SCENES
-from ipbench.envs.sorting import workcell_places
 from ipbench.eval.sorting import SortingEvalConfig, SortingEvalError, Task, run_sorting_eval
-from ipbench.perception.classifiers import make_classifier
-from ipbench.perception.cloud import depth_to_points
-from ipbench.perception.features import Codebook, fpfh
-from ipbench.perception.model import PerceptionModel
-from ipbench.perception.segmentation import segment_scene
 from ipbench.policies import POLICIES, PolicyModels
-from ipbench.policies.oracle import true_category
 from ipbench.policies.threshold import choose_threshold
 
 FAST = SortingEvalConfig(scenes=("uncluttered",), seeds=(0,), steps_per_object=1)
@@ -35,29 +27,7 @@ FAST = SortingEvalConfig(scenes=("uncluttered",), seeds=(0,), steps_per_object=1
 def models() -> PolicyModels:
     """A small real model: codebook and classifiers from the segments of a few wrist views
     (labelled by the ground-truth masks), instead of the full rendered dataset."""
-    env = gym.make("ipbench/Sorting-v1", scene="uncluttered")
-    views, labels = [], []
-    for seed in (500, 501, 502):
-        obs, info = env.reset(seed=seed)
-        cloud = depth_to_points(obs["wrist_depth"], obs["wrist_K"], obs["wrist_pose"])
-        for s in segment_scene(cloud).segments:
-            truth = true_category(s.pixels, info)
-            if truth is not None:
-                views.append(fpfh(s.points, viewpoint=obs["wrist_pose"][:3, 3]))
-                labels.append(CATEGORIES.index(truth))
-    env.close()
-    codebook = Codebook.fit(np.concatenate(views), 32, seed=0)
-    X = np.stack([codebook.encode(v) for v in views])
-    y = np.array(labels)
-    gp = make_classifier("gp", 5).fit(X, y).model_
-    svm = make_classifier("svm", 5).fit(np.concatenate([X] * 3), np.concatenate([y] * 3))
-    area = tuple(float(v) for v in workcell_places().inspection_area.center)
-    return PolicyModels(
-        gp=PerceptionModel(CATEGORIES, codebook, gp, "test-gp"),
-        svm=PerceptionModel(CATEGORIES, codebook, svm, "test-svm"),
-        inspection_area=area,
-        thresholds={"gp": 0.5, "svm": 0.5},
-    )
+    return small_models((500, 501, 502), 32, 0.5)
 
 
 @pytest.fixture
