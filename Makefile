@@ -11,7 +11,7 @@ export PYOPENGL_PLATFORM ?= egl
 
 .PHONY: eval test setup lint clean
 
-# The benchmark with its defaults: both scenes, random vs GP-IPM, 10 seeds, one video per
+# The benchmark with its defaults: both scenes, random vs GP-IPM, 30 seeds, one video per
 # policy and scene; perception is trained on first use and cached in results/cache.
 eval: $(STAMP)
 	$(VENV)/bin/ipbench eval sorting --workers 2 --video --out results/sorting --cache results/cache

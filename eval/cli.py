@@ -161,7 +161,7 @@ def build_parser() -> argparse.ArgumentParser:
         "(inspect in the inspection area), svm-ipm (SVM confidences), oracle (true labels)",
     )
     sorting.add_argument(
-        "--seeds", default="0:10", help="episode seeds: A:B (A..B-1) or a comma-separated list"
+        "--seeds", default="0:30", help="episode seeds: A:B (A..B-1) or a comma-separated list"
     )
     sorting.add_argument("--workers", type=int, default=1, help="episodes run in parallel")
     sorting.add_argument(

@@ -350,6 +350,7 @@ def load_or_build(
     config: DatasetConfig = DatasetConfig(),
     progress: bool = True,
     workers: int = 2,
+    training_only: bool = False,
 ) -> ViewSet:
     """Every instance's isolated and in-hand views and the cluttered-scene segments, cached
     or rendered.
@@ -358,19 +359,28 @@ def load_or_build(
     or truncated) is reported and rebuilt. Instances render in ``workers`` processes and each
     instance's part is written as soon as it is done, so an interrupted build resumes where it
     stopped.
+
+    ``training_only``: just the known instances' views (no test instances, no cluttered
+    segments), which is all that training a model reads — what a sorting evaluation needs,
+    about a third less rendering. They are the known views of the whole set, in its order (so the
+    models are identical), taken from the whole cache file if it exists; otherwise only their
+    parts are rendered, which a later whole build reuses (only a whole build writes the file).
     """
     cache_dir = Path(cache_dir)
     cache_dir.mkdir(parents=True, exist_ok=True)
     path = cache_dir / f"views-{config.key()}.npz"
     if path.exists():
         try:
-            return ViewSet.load(path)
+            views = ViewSet.load(path)
+            if training_only:
+                return views.subset(views.known & (views.source != "cluttered"))
+            return views
         except (OSError, ValueError, KeyError, zipfile.BadZipFile) as err:
             print(f"ipbench: dataset cache {path} is unreadable ({err}); rebuilding it")
             path.unlink()
     parts_dir = cache_dir / f"parts-{config.key()}"
     parts_dir.mkdir(exist_ok=True)
-    chosen = config.chosen_instances()
+    chosen = [i for i in config.chosen_instances() if i.known or not training_only]
     kinds = [k for k in _RENDERERS if k != "in_hand" or config.in_hand_views > 0]
     jobs = [(kind, inst) for inst in chosen for kind in kinds]
     parts: dict[tuple[str, str], ViewSet] = {}
@@ -399,6 +409,8 @@ def load_or_build(
             bar.update()
     bar.close()
     sets = [parts[kind, inst.name] for kind, inst in jobs]
+    if training_only:
+        return ViewSet.concat(sets)
     part = parts_dir / "cluttered.npz"
     clutter = _load_part(part)
     if clutter is None:

@@ -179,7 +179,7 @@ def trained_models(
 
     def training_data() -> tuple[Codebook, np.ndarray, np.ndarray]:
         if not shared:
-            views = load_or_build(cache, config.dataset)
+            views = load_or_build(cache, config.dataset, training_only=True)
             codebook = _fit_codebook(training_views(views, "scene"), config)
             train = training_views(views, condition)
             keep = np.isin(train.labels, [CATEGORIES.index(c) for c in classes])

@@ -96,7 +96,7 @@ class SortingEvalConfig:
 
     scenes: tuple[str, ...] = ("uncluttered", "cluttered")
     policies: tuple[str, ...] = ("random", "gp-ipm")
-    seeds: tuple[int, ...] = tuple(range(10))
+    seeds: tuple[int, ...] = tuple(range(30))
     validation_seeds: tuple[int, ...] = tuple(range(1000, 1008))
     target_precision: float = 0.95
     n_views: int = 3

@@ -83,7 +83,12 @@ def test_a_file_in_place_of_the_cache_folder_is_explained(argv, tmp_path):
 
 def test_help_shows_defaults_and_valid_names(capsys, wide):
     sorting = _help(["eval", "sorting"], capsys)
-    assert "(default: 0:10)" in sorting and "(default: uncluttered,cluttered)" in sorting
+    from ipbench.eval.sorting import SortingEvalConfig
+
+    seeds = SortingEvalConfig().seeds  # the CLI's default is the configuration's (30 seeds)
+    assert seeds == tuple(range(seeds[0], seeds[-1] + 1)) and len(seeds) == 30
+    assert f"(default: {seeds[0]}:{seeds[-1] + 1})" in sorting
+    assert "(default: uncluttered,cluttered)" in sorting
     assert "(default: results/sorting)" in sorting and "(default: process)" in sorting
     assert "scenes of " + ", ".join(SCENES) in sorting
     assert all(p in sorting for p in POLICIES)

@@ -5,6 +5,7 @@ from __future__ import annotations
 import importlib
 import inspect
 import json
+import shutil
 
 import numpy as np
 import pytest
@@ -99,14 +100,14 @@ def test_in_hand_models_are_cached_apart_and_need_in_hand_views(views, tmp_path,
     import ipbench.eval.perception as perception
 
     config = PerceptionEvalConfig(dataset=TINY, codebook_size=16)
-    monkeypatch.setattr(perception, "load_or_build", lambda cache, dataset: views)
+    monkeypatch.setattr(perception, "load_or_build", lambda cache, dataset, **_: views)
     scene = perception.trained_model(tmp_path, config)
     hand = perception.trained_models(tmp_path, config, condition="in_hand")["gp"]
     assert hand.key != scene.key and len(list(tmp_path.glob("model-*.npz"))) == 2
     # one codebook for both conditions: the one fitted on the isolated views
     np.testing.assert_array_equal(hand.codebook.centers, scene.codebook.centers)
     without = views.subset(views.source != "in_hand")
-    monkeypatch.setattr(perception, "load_or_build", lambda cache, dataset: without)
+    monkeypatch.setattr(perception, "load_or_build", lambda cache, dataset, **_: without)
     with pytest.raises(ValueError, match="in_hand_views > 0"):
         perception.trained_models(tmp_path / "other", config, condition="in_hand")
 
@@ -129,6 +130,41 @@ def test_cache_is_reused_and_a_corrupt_file_is_rebuilt(cache, views, capsys):
     rebuilt = load_or_build(cache, TINY, progress=False)
     assert "unreadable" in capsys.readouterr().out
     np.testing.assert_array_equal(rebuilt.descriptors, views.descriptors)  # deterministic
+
+
+def test_training_only_build_renders_just_the_known_instances(cache, views, tmp_path, monkeypatch):
+    import ipbench.eval.dataset as dataset
+
+    known = views.subset(views.known & (views.source != "cluttered"))
+    # from the parts of a whole build: exactly the known views of the whole set, in order
+    whole_file = load_or_build(cache, TINY, progress=False, training_only=True)
+    parts = tmp_path / "parts_only"
+    shutil.copytree(cache, parts)
+    for f in [*parts.glob("views-*.npz"), *parts.glob("parts-*/cluttered.npz")]:
+        f.unlink()
+    parts_only = load_or_build(parts, TINY, progress=False, training_only=True)
+    for reused in (whole_file, parts_only):
+        np.testing.assert_array_equal(reused.descriptors, known.descriptors)
+        np.testing.assert_array_equal(reused.instance, known.instance)
+        np.testing.assert_array_equal(reused.source, known.source)
+    assert not list(parts.glob("views-*.npz")) and not list(parts.glob("parts-*/cluttered.npz"))
+    # from nothing: no test instance and no cluttered scene is rendered, no whole file written
+    rendered = []
+
+    def fake_render(kind, inst, config):
+        rendered.append((kind, inst.known))
+        return known.subset(known.instance == known.instance[0])
+
+    def no_clutter(*args, **kwargs):
+        raise AssertionError("a training-only build rendered the cluttered scenes")
+
+    monkeypatch.setattr(dataset, "_render_part", fake_render)
+    monkeypatch.setattr(dataset, "render_cluttered_segments", no_clutter)
+    empty = tmp_path / "empty"
+    load_or_build(empty, TINY, progress=False, workers=1, training_only=True)
+    n_known = sum(i.known for i in TINY.chosen_instances())
+    assert sorted(rendered) == sorted([("isolated", True), ("in_hand", True)] * n_known)
+    assert not list(empty.glob("views-*.npz"))
 
 
 def test_config_hash_changes_with_the_protocol():
@@ -218,7 +254,7 @@ def test_sensor_ablation_switches_each_effect_off_in_turn(tmp_path, monkeypatch)
 
     seen = []
 
-    def fake_build(cache, dataset):  # records what would be captured; tiny separable data
+    def fake_build(cache, dataset, **_):  # records what would be captured; tiny separable data
         seen.append(dataset)
         rng = np.random.default_rng(len(seen))
         views = []
