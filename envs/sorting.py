@@ -78,7 +78,14 @@ from ipbench.envs.sensors import (
     specular_geoms,
 )
 from ipbench.envs.skills import SkillConfig, SkillResult, Skills
-from ipbench.envs.world import Places, World, build_world, object_status
+from ipbench.envs.world import (
+    FAST_PHYSICS,
+    PhysicsConfig,
+    Places,
+    World,
+    build_world,
+    object_status,
+)
 
 __all__ = [
     "CAMERAS",
@@ -202,6 +209,10 @@ class SortingConfig:
         are those of the default. Without ``"wrist"`` the wrist's depth noise is not drawn
         either (and ``info`` has no ``wrist_mask``), so an unseeded ``reset()`` after an
         episode then lays out other objects than the default would; seeded resets agree.
+    physics : physics options on top of the work cell's MJCF
+        (:class:`~ipbench.envs.world.PhysicsConfig`; the default changes nothing, as v0/v1
+        run; ``Sorting-v2``: :data:`~ipbench.envs.world.FAST_PHYSICS`, objects at rest
+        sleep).
     """
 
     scene: str = "uncluttered"
@@ -219,6 +230,7 @@ class SortingConfig:
     bin_depth: float = BIN_INTERIOR[2]
     catalog: str = "v1"
     cameras: tuple[str, ...] = CAMERAS
+    physics: PhysicsConfig = field(default_factory=PhysicsConfig)
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "cameras", _cameras(self.cameras))
@@ -234,10 +246,11 @@ V0: dict = {
 """The settings ``Sorting-v0`` fixes: no jaw pre-shaping, blind descents, fingers stepped
 shut, light fingers, 24 cm deep bins, and a blow-up truncates the episode."""
 
-V2: dict = {"catalog": "v2", "depth_noise": STRUCTURED_LIGHT}
+V2: dict = {"catalog": "v2", "depth_noise": STRUCTURED_LIGHT, "physics": FAST_PHYSICS}
 """The settings ``Sorting-v2`` (under development) adds to v1: the v2 object catalogue (real
-product families, printed textures, train / similar / novel splits) and structured-light
-depth as the sensor makes it (projector shadow, disparity block matching, per-unit error)."""
+product families, printed textures, train / similar / novel splits), structured-light
+depth as the sensor makes it (projector shadow, disparity block matching, per-unit error),
+and faster physics (:data:`~ipbench.envs.world.FAST_PHYSICS`: objects at rest sleep)."""
 
 
 class SortingEnv(gym.Env):
@@ -344,7 +357,7 @@ class SortingEnv(gym.Env):
                 spec.joint(
                     f"{GRIPPER_ARM}_gripper_finger_{finger}"
                 ).armature = self.config.finger_armature
-        self.world = build_world(layout, spec)
+        self.world = build_world(layout, spec, self.config.physics)
         self.model = self.world.model
         self.data = mujoco.MjData(self.model)
         mujoco.mj_resetDataKeyframe(self.model, self.data, self.model.key("home").id)

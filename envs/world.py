@@ -5,6 +5,8 @@
 their layout poses). :class:`Places` reads every location the code needs from the model's
 sites, so each is written once, in ``assets/scenes/workcell.xml``. :func:`object_status` is
 ground truth for ``info`` and evaluation only: policies never see it.
+:class:`PhysicsConfig` holds the physics options a version sets on top of the MJCF (none for
+``Sorting-v0``/``-v1``; :data:`FAST_PHYSICS` for ``Sorting-v2``).
 """
 
 from __future__ import annotations
@@ -18,7 +20,16 @@ from ipbench.assets.compose import HEAD_SIDES, build_workcell_spec, head_gaze
 from ipbench.assets.objects import CATEGORIES, add_object
 from ipbench.envs.layout import Layout
 
-__all__ = ["Box", "Places", "World", "build_world", "object_status", "STATUSES"]
+__all__ = [
+    "Box",
+    "FAST_PHYSICS",
+    "PhysicsConfig",
+    "Places",
+    "World",
+    "build_world",
+    "object_status",
+    "STATUSES",
+]
 
 STATUSES = ("on_table", "in_inspection_area", "in_hand", "dropped") + tuple(
     f"in_bin:{c}" for c in CATEGORIES
@@ -82,6 +93,40 @@ class Places:
 
 
 @dataclass(frozen=True)
+class PhysicsConfig:
+    """Physics options applied on top of the work cell's MJCF (the defaults change nothing:
+    the model is exactly the MJCF's, as ``Sorting-v0``/``-v1`` run it).
+
+    Attributes
+    ----------
+    sleep : MuJoCo's sleeping islands (``mjENBL_SLEEP``): a kinematic tree (an object, or a
+        pile of objects touching each other) whose velocities stay below ``sleep_tolerance``
+        for 10 steps is frozen and left out of collision detection and the solver until
+        something awake touches it, which wakes it within the same step. The robot is
+        actuated and never sleeps. Objects resting on the table or in a bin then cost
+        nothing while the arms move; what they do when touched is unchanged.
+    sleep_tolerance : velocity below which a tree may sleep (m/s; rotations scaled by the
+        tree's size); ``None`` keeps MuJoCo's default.
+    """
+
+    sleep: bool = False
+    sleep_tolerance: float | None = None
+
+    def apply_to_model(self, model: mujoco.MjModel) -> None:
+        """The options of ``model.opt`` (set before any ``MjData`` of the episode is made:
+        sleeping must be enabled when the data is created)."""
+        if self.sleep:
+            model.opt.enableflags |= int(mujoco.mjtEnableBit.mjENBL_SLEEP)
+            if self.sleep_tolerance is not None:
+                model.opt.sleep_tolerance = self.sleep_tolerance
+
+
+FAST_PHYSICS = PhysicsConfig(sleep=True, sleep_tolerance=1e-3)
+"""``Sorting-v2``'s physics: objects at rest sleep (tested in ``tests/test_physics_v2.py``;
+validated against v1's physics with the oracle on the cluttered scene)."""
+
+
+@dataclass(frozen=True)
 class World:
     """A compiled work cell with a layout's objects.
 
@@ -101,8 +146,11 @@ class World:
     object_geoms: dict[int, int]
 
 
-def build_world(layout: Layout, spec: mujoco.MjSpec | None = None) -> World:
-    """Compile the work cell with ``layout``'s objects (``spec``: a fresh work cell spec)."""
+def build_world(
+    layout: Layout, spec: mujoco.MjSpec | None = None, physics: PhysicsConfig | None = None
+) -> World:
+    """Compile the work cell with ``layout``'s objects (``spec``: a fresh work cell spec;
+    ``physics``: options on top of the MJCF, none by default)."""
     spec = spec if spec is not None else build_workcell_spec()
     for obj in layout.objects:
         add_object(spec, obj.instance, obj.body, pos=obj.position, quat=obj.quat)
@@ -110,6 +158,8 @@ def build_world(layout: Layout, spec: mujoco.MjSpec | None = None) -> World:
     model = spec.compile()
     places = Places.from_model(model)
     _set_home_gaze(model, places.head_target)
+    if physics is not None:  # after the kinematic helpers above, before the episode's data
+        physics.apply_to_model(model)
     bodies = np.array([model.body(o.body).id for o in layout.objects], dtype=int)
     root_to_obj = {int(b): k for k, b in enumerate(bodies)}
     geoms = {

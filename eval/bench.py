@@ -5,8 +5,12 @@ hook) against raw ``mj_step`` of the same model; wrist RGB-D frames/s at 640x480
 ``rgbd_fps`` renders RGB and metric depth in one pass, ``rgbd_noisy_fps`` adds the env's own
 depth sensor model (what the environment observes; for ``ipbench/Sorting-v2`` the full
 structured-light model with the episode's unit error); head stereo pairs/s at the
-default 1024x680; wall time of a pick-and-place skill; ``reset`` time. Speed targets live
-here, never in timed tests.
+default 1024x680; wall time of a pick-and-place skill; ``reset`` time;
+``mj_step_per_s_manipulation``, raw ``mj_step`` of the *cluttered* scene while the gripper
+holds an object between its pads during a pick (see :func:`manipulation_step_rate`: the
+physics the episodes spend most of their steps on, and what ``Sorting-v2``'s
+:data:`~ipbench.envs.world.FAST_PHYSICS` speeds up). Speed targets live here, never in timed
+tests.
 """
 
 from __future__ import annotations
@@ -24,7 +28,7 @@ from ipbench.envs.sensors import intrinsics
 from ipbench.envs.sorting import WRIST_CAMERA, WRIST_SIZE
 from ipbench.policies.scripted import GroundTruthSorter
 
-__all__ = ["bench_sim", "TARGETS"]
+__all__ = ["bench_sim", "manipulation_step_rate", "TARGETS"]
 
 TARGETS = {
     "rgbd_fps": 200.0,
@@ -43,6 +47,80 @@ def _rate(fn, n: int) -> float:
     for _ in range(n):
         fn()
     return n / (time.perf_counter() - t0)
+
+
+class _InContact(Exception):
+    """Raised from the physics step once the pads have held an object long enough."""
+
+
+def manipulation_step_rate(
+    env_id: str = "ipbench/Sorting-v1",
+    seeds: tuple[int, ...] = (0, 1, 2),
+    steps: int = 500,
+    repeats: int = 3,
+    touch_steps: int = 50,
+) -> float:
+    """Raw ``mj_step`` calls per second during a pick in the cluttered scene (median over
+    ``seeds``).
+
+    For each seed: ``reset`` the cluttered scene of ``env_id`` (wrist camera only: nothing
+    is rendered while stepping), let the scripted ground-truth sorter pick; the first time
+    both gripper pads have touched a free object for ``touch_steps`` physics steps (the jaws
+    closing on it, the neighbours it leans on in contact too) the state is copied. From that
+    copy ``mj_step`` runs ``steps`` times with the controls as they were (jaws squeezing,
+    arm holding still), ``repeats`` times; the fastest run gives the seed's rate. Only
+    ``mujoco.mj_step`` is timed — no Python hooks, rendering or skill logic — so the figure
+    is what the model's physics options cost where clutter makes them costly (contacts of
+    the pile, the pads and the table), comparable across env ids. A seed whose first picks
+    never touch anything is skipped; with none left the result is 0.
+    """
+    rates = [_pick_contact_rate(env_id, seed, steps, repeats, touch_steps) for seed in seeds]
+    rates = [r for r in rates if r is not None]
+    return float(np.median(rates)) if rates else 0.0
+
+
+def _pick_contact_rate(
+    env_id: str, seed: int, steps: int, repeats: int, touch_steps: int
+) -> float | None:
+    """One seed of :func:`manipulation_step_rate` (None: no pick held anything)."""
+    from ipbench.policies.scripted import GroundTruthSorter
+
+    env = gym.make(env_id, scene="cluttered", cameras=("wrist",))
+    try:
+        obs, info = env.reset(seed=seed)
+        base = env.unwrapped
+        model, data, skills = base.model, base.data, base.skills
+        step, held = base.robot._step, [0]
+
+        def step_and_watch():
+            step()
+            if skills._pads_touch_object():
+                held[0] += 1
+                if held[0] >= touch_steps:
+                    raise _InContact
+
+        base.robot._step = step_and_watch
+        policy = GroundTruthSorter(base.config.jaw_opening)
+        try:
+            for _ in range(5):
+                obs, _, terminated, truncated, info = env.step(policy.act(obs, info))
+                if terminated or truncated:
+                    break
+            return None
+        except _InContact:
+            pass
+        snapshot = mujoco.MjData(model)
+        mujoco.mj_copyData(snapshot, model, data)
+        best = np.inf
+        for _ in range(repeats):
+            mujoco.mj_copyData(data, model, snapshot)
+            t0 = time.perf_counter()
+            for _ in range(steps):
+                mujoco.mj_step(model, data)
+            best = min(best, time.perf_counter() - t0)
+        return steps / best
+    finally:
+        env.close()
 
 
 def bench_sim(
@@ -92,9 +170,11 @@ def bench_sim(
         if terminated or truncated:
             break
     env.close()
+    manipulation = manipulation_step_rate(env_id)
     return {
         "physics_steps_per_s": round(physics, 1),
         "raw_mj_step_per_s": round(raw, 1),
+        "mj_step_per_s_manipulation": round(manipulation, 1),
         "rgbd_fps": round(rgbd_fps, 1),
         "rgbd_noisy_fps": round(noisy_fps, 1),
         "stereo_fps": round(stereo_fps, 1),
