@@ -55,7 +55,7 @@ from ipbench.envs.skills import Skills
 from ipbench.envs.sorting import WRIST_CAMERA, WRIST_SIZE
 from ipbench.envs.world import Places, build_world
 from ipbench.eval.hand_views import render_in_hand_views
-from ipbench.eval.schedule import single_thread_worker
+from ipbench.eval.schedule import pool_worker
 from ipbench.perception.cloud import PerceptionError, depth_to_points
 from ipbench.perception.features import FeatureConfig, fpfh
 from ipbench.perception.segmentation import SegmentationConfig, segment_scene
@@ -318,7 +318,7 @@ def _pool(workers: int):
     # spawn: each worker opens its own headless GL context (no GL state crosses a fork), with
     # one thread per library: `workers` processes on as many cores (ipbench.eval.schedule)
     return ProcessPoolExecutor(
-        workers, mp_context=multiprocessing.get_context("spawn"), initializer=single_thread_worker
+        workers, mp_context=multiprocessing.get_context("spawn"), initializer=pool_worker
     )
 
 

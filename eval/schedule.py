@@ -11,17 +11,27 @@ task list.
 
 Each worker process renders with one llvmpipe thread and runs OpenCV, BLAS and torch with one
 thread (:func:`single_thread_worker`): ``W`` workers on ``W`` cores, not ``2 W`` threads
-fighting for them.
+fighting for them. A local worker also ends itself when the process that started it is gone
+(:func:`exit_with_parent`): a killed ``ipbench eval`` leaves no workers rendering for nobody.
 """
 
 from __future__ import annotations
 
 import os
 import sys
+import threading
+import time
 from collections.abc import Callable, Iterable, Sequence
 from typing import TypeVar
 
-__all__ = ["COST_FACTOR", "longest_first", "single_thread_worker", "task_cost"]
+__all__ = [
+    "COST_FACTOR",
+    "exit_with_parent",
+    "longest_first",
+    "pool_worker",
+    "single_thread_worker",
+    "task_cost",
+]
 
 T = TypeVar("T")
 
@@ -59,3 +69,25 @@ def single_thread_worker() -> None:
     torch = sys.modules.get("torch")  # already started: its pool is set, not its variable
     if torch is not None:
         torch.set_num_threads(1)
+
+
+def exit_with_parent(poll_s: float = 0.5) -> None:
+    """End this process within ``poll_s`` seconds of its parent's end (killed, crashed or
+    exited): a daemon thread watches for the re-parenting. A pool's workers otherwise go on
+    with their queued tasks after ``kill`` of the main process (only Ctrl-C reaches the whole
+    process group), holding the cores and writing nothing anyone reads."""
+    parent = os.getppid()
+
+    def watch() -> None:
+        while os.getppid() == parent:
+            time.sleep(poll_s)
+        os._exit(1)
+
+    threading.Thread(target=watch, name="exit-with-parent", daemon=True).start()
+
+
+def pool_worker() -> None:
+    """Initializer of a local worker process: :func:`single_thread_worker`, and
+    :func:`exit_with_parent`."""
+    single_thread_worker()
+    exit_with_parent()

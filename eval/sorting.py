@@ -39,7 +39,7 @@ from ipbench.envs.layout import SCENES
 from ipbench.envs.sorting import workcell_places
 from ipbench.eval.files import ensure_writable
 from ipbench.eval.perception import PerceptionEvalConfig, model_key, trained_models
-from ipbench.eval.schedule import longest_first, single_thread_worker, task_cost
+from ipbench.eval.schedule import longest_first, pool_worker, single_thread_worker, task_cost
 from ipbench.eval.sorting_report import ThresholdSweep, load_episodes, write_report
 from ipbench.policies import (
     EVAL_CAMERAS,
@@ -402,7 +402,7 @@ _WORKER: dict = {}
 
 
 def _init_worker(models: PolicyModels, config: SortingEvalConfig) -> None:
-    single_thread_worker()  # W workers on W cores (see ipbench.eval.schedule)
+    pool_worker()  # W workers on W cores, gone with the main (ipbench.eval.schedule)
     _WORKER["models"], _WORKER["config"] = models, config
 
 

@@ -1,7 +1,9 @@
-"""Longest-first scheduling of episode tasks and single-threaded workers."""
+"""Longest-first scheduling of episode tasks, single-threaded workers that end with their main."""
 
+import os
 import subprocess
 import sys
+import time
 
 from ipbench.eval.schedule import COST_FACTOR, longest_first, task_cost
 
@@ -35,3 +37,35 @@ def test_single_thread_worker_limits_opencv_and_llvmpipe():
     )
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert out.stdout.split() == ["1", "1"]
+
+
+def _alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    stat = f"/proc/{pid}/stat"  # a zombie waiting for its reaper counts as gone
+    return not (os.path.exists(stat) and open(stat).read().split(") ")[1].startswith("Z"))
+
+
+def test_pool_workers_end_when_the_main_process_is_killed():
+    code = (
+        "import multiprocessing as mp, os, time\n"
+        "from concurrent.futures import ProcessPoolExecutor\n"
+        "from ipbench.eval.schedule import pool_worker\n"
+        "if __name__ == '__main__':\n"
+        "    pool = ProcessPoolExecutor(1, mp_context=mp.get_context('spawn'),"
+        " initializer=pool_worker)\n"
+        "    print(pool.submit(os.getpid).result(), flush=True)\n"
+        "    pool.submit(time.sleep, 120)\n"
+        "    time.sleep(120)\n"
+    )
+    main = subprocess.Popen([sys.executable, "-c", code], stdout=subprocess.PIPE, text=True)
+    worker = int(main.stdout.readline())
+    assert _alive(worker)
+    main.kill()  # SIGKILL: no cleanup in the main process at all
+    main.wait()
+    deadline = time.monotonic() + 10
+    while _alive(worker) and time.monotonic() < deadline:
+        time.sleep(0.1)
+    assert not _alive(worker), "the worker went on after its main process was killed"
