@@ -6,7 +6,12 @@ thresholds from the cache. Keys:
 
 - ``<policy>_w1_episodes_per_min``, ``<policy>_w2_episodes_per_min`` for each policy asked
   for, and ``episodes_per_min_1``, ``episodes_per_min_2`` (GP-IPM's, always measured) with
-  ``speedup_2_workers`` = their ratio (2 on 2 cores is perfect scaling);
+  ``speedup_2_workers`` = their ratio (2 on 2 cores is perfect scaling), and where the rest
+  goes: ``slowdown_2_workers``, GP-IPM's mean episode wall time with 2 workers over that with
+  one (the cores slowing each other: shared cache and memory bandwidth, anything else running),
+  and ``busy_2_workers``, the share of the 2-worker run's wall time x 2 that the workers spent
+  in episodes (the rest: starting the pool, loading models, waiting on the last long episode).
+  ``speedup_2_workers`` ~= 2 x ``busy_2_workers`` / ``slowdown_2_workers``;
 - ``episode_s_v1``, ``episode_s_v2``: mean wall seconds of the same cluttered ``oracle``
   episodes (true labels: no threshold, the same segmentation and grasping code) on
   ``ipbench/Sorting-v1`` and ``ipbench/Sorting-v2`` (under development), one worker, measured
@@ -56,11 +61,11 @@ def _with_env(config: SortingEvalConfig, env_id: str) -> SortingEvalConfig:
     return replace(config, perception=replace(perception, dataset=dataset))
 
 
-def _minutes(config: SortingEvalConfig, tasks: list[Task], models) -> float:
+def _run(config: SortingEvalConfig, tasks: list[Task], models) -> tuple[float, float]:
+    """Wall minutes of the run, and the sum of its episodes' own wall seconds."""
     t0 = time.perf_counter()
-    for _ in _executor(config)(tasks, models, config):
-        pass
-    return (time.perf_counter() - t0) / 60.0
+    inside = sum(r["wall_time_s"] for r in _executor(config)(tasks, models, config))
+    return (time.perf_counter() - t0) / 60.0, float(inside)
 
 
 def bench_eval(
@@ -72,21 +77,28 @@ def bench_eval(
     models, _ = prepare_models(cache, base)
     figures: dict[str, float] = {}
     seeds = range(episodes)
+    inside: dict[int, float] = {}
     for policy in dict.fromkeys((*policies, "gp-ipm")):
         tasks = [Task("cluttered", policy, seed) for seed in seeds]
         for workers in (1, 2):
             config = replace(base, policies=(policy,), workers=workers)
-            rate = round(episodes / _minutes(config, tasks, models), 2)
+            minutes, episode_s = _run(config, tasks, models)
+            rate = round(episodes / minutes, 2)
             if policy in policies:
                 figures[f"{policy}_w{workers}_episodes_per_min"] = rate
             if policy == "gp-ipm":
                 figures[f"episodes_per_min_{workers}"] = rate
+                inside[workers] = episode_s
+                if workers == 2:
+                    figures["busy_2_workers"] = round(episode_s / (2 * 60.0 * minutes), 3)
     figures["speedup_2_workers"] = round(
         figures["episodes_per_min_2"] / figures["episodes_per_min_1"], 2
     )
+    figures["slowdown_2_workers"] = round(inside[2] / inside[1], 3)
     oracle = [Task("cluttered", "oracle", seed) for seed in seeds]
     for tag, env_id in (("v1", _V1), ("v2", _V2)):
         config = _with_env(replace(base, policies=("oracle",), workers=1), env_id)
-        figures[f"episode_s_{tag}"] = round(60.0 * _minutes(config, oracle, models) / episodes, 2)
+        minutes, _ = _run(config, oracle, models)
+        figures[f"episode_s_{tag}"] = round(60.0 * minutes / episodes, 2)
     figures["episode_speedup_v2"] = round(figures["episode_s_v1"] / figures["episode_s_v2"], 2)
     return figures
