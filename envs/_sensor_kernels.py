@@ -11,7 +11,12 @@ next to this file (``cache=True``; a read-only install compiles once per process
 
 Element-wise kernels take flat views (``a.reshape(-1)`` of C-contiguous images) and never
 write in place of an input: LLVM then vectorises them (a 2-D loop, a table look-up or an
-aliased output keeps them scalar, 5-10x slower). Table look-ups stay in ``cv2.LUT``.
+aliased output keeps them scalar, 5-10x slower). Table look-ups stay in ``cv2.LUT``. Row-wise
+kernels index row views ``a[r]`` (flat) with a loop variable, ``4 c + channel`` for
+interleaved channels, and offsets as views (``a[k:]``): an index that LLVM cannot prove
+non-negative keeps numba's negative-index check, which keeps the loop scalar (2-10x slower).
+The block matcher's window sums (:func:`match_into`) repeat OpenCV's unnormalised
+``boxFilter`` operation for operation, streamed row by row through a ring of row sums.
 """
 
 from __future__ import annotations
@@ -24,15 +29,17 @@ __all__ = [
     "cos_incidence_into",
     "disparity_slope_into",
     "lateral_resample_into",
-    "match_decide_into",
-    "match_weights_into",
+    "match_into",
     "noisy_depth_into",
-    "pair_with_reciprocal_into",
     "projector_lit_into",
+    "reciprocal_into",
     "seen_dots_into",
+    "shadowed_depth_into",
+    "specular_drop_into",
 ]
 
 _jit = numba.njit(cache=True, nogil=True, error_model="numpy")
+_part = numba.njit(nogil=True, error_model="numpy")  # a part of kernels
 _f32 = np.float32
 
 
@@ -41,6 +48,17 @@ def _smaller_diff(back, fwd):
     """The one-sided difference of smaller magnitude, as ``back + (fwd - back) * cond``."""
     cond = _f32(1.0) if abs(fwd) < abs(back) else _f32(0.0)
     return back + (fwd - back) * cond
+
+
+@numba.njit(inline="always")
+def _reflect101(i, n):
+    """``i`` reflected into ``[0, n)`` without repeating the edge (``cv2.borderInterpolate``
+    with ``BORDER_REFLECT_101``: -1 -> 1, n -> n - 2)."""
+    if n == 1:
+        return 0
+    while i < 0 or i >= n:
+        i = -i if i < 0 else 2 * n - 2 - i
+    return i
 
 
 @_jit
@@ -109,16 +127,6 @@ def disparity_slope_into(z, tan_theta, sin_beta, fb, scale, d_out, slope_out):
 
 
 @_jit
-def pair_with_reciprocal_into(d, pair):
-    """``pair[2 i] = d[i]``, ``pair[2 i + 1] = 1 / d[i]`` (inf where d is 0); float32."""
-    one = _f32(1.0)
-    for i in range(d.size):
-        pair[2 * i] = d[i]
-        pair[2 * i + 1] = one / d[i]
-    return pair
-
-
-@_jit
 def seen_dots_into(d, pattern, sign, dots):
     """(H, W) float32: ``pattern[v, rint(u - sign d)]``, the column wrapped (as ``cv2.remap``
     nearest with ``BORDER_WRAP``, which rounds half to even): the projector dot seen at each
@@ -135,94 +143,309 @@ def seen_dots_into(d, pattern, sign, dots):
 
 
 @_jit
-def match_weights_into(d, dots, slope, tol, pair9, dmax17, stack, single):
-    """Per-pixel terms of the block matcher, before the window sums.
-
-    ``dots``: 1 where a projector dot is seen; ``wgt = d^2 dots``. With ``tl = slope + tol``
-    and ``pair9`` the interleaved 9x9 maxima of ``(d, 1 / d)``: ``single = max d - 1 / max(1
-    / d) <= tl`` (the window's disparity span, a pixel without return counting as 0);
-    ``near = d >= dmax17 - tl``; ``stack[4 i:4 i + 4] = (wgt, wgt near, wgt d, wgt near d)``.
-    """
-    tol, one, zero = _f32(tol), _f32(1.0), _f32(0.0)
-    for i in range(d.size):
-        di = d[i]
-        wgt = (di * di) * dots[i]
-        tl = slope[i] + tol
-        single[i] = np.uint8(pair9[2 * i] - one / pair9[2 * i + 1] <= tl)
-        wn = wgt if di >= dmax17[i] - tl else zero
-        stack[4 * i] = wgt
-        stack[4 * i + 1] = wn
-        stack[4 * i + 2] = wgt * di
-        stack[4 * i + 3] = wn * di
-    return stack
+def reciprocal_into(x, out):
+    """``out = 1 / x`` (float32, inf where x is 0), flat."""
+    one = _f32(1.0)
+    for i in range(x.size):
+        out[i] = one / x[i]
+    return out
 
 
-@_jit
-def match_decide_into(sums, single, d, min_dots, match_fraction, matched, lost):
-    """The winner of each window from its interleaved sums ``(wgt, wn, wd, wnd)``.
+@_part
+def _match_terms_row(d, dots, slope, dmax2, tol, a, pad):
+    """One row's four block-matching terms as float64 into ``pad`` (4 (W + 2a),), interleaved,
+    with ``a`` reflected columns on each side (``BORDER_REFLECT_101``): ``wgt = d^2 dots``,
+    ``wn = wgt`` where ``d >= dmax2 - (slope + tol)`` (else 0), ``wgt d``, ``wn d`` (float32).
+    (Indices ``4 c + channel`` of a loop variable ``c``: LLVM then proves them non-negative and
+    drops numba's negative-index checks, which keep a loop scalar; offsets are views.)"""
+    w, zero, mid = d.size, _f32(0.0), pad[4 * a :]
+    for c in range(w):
+        di = d[c]
+        wgt = (di * di) * dots[c]
+        tl = slope[c] + tol
+        wn = wgt if di >= dmax2[c] - tl else zero
+        mid[4 * c] = wgt
+        mid[4 * c + 1] = wn
+        mid[4 * c + 2] = wgt * di
+        mid[4 * c + 3] = wn * di
+    right = pad[4 * (a + w) :]
+    for j in range(a):
+        src_l, src_r = 4 * _reflect101(j - a, w), 4 * _reflect101(w + j, w)
+        for ch in range(4):
+            pad[4 * j + ch] = mid[src_l + ch]
+            right[4 * j + ch] = mid[src_r + ch]
 
-    Single-surface windows (``single``): the near class is the whole window. Far class = total
-    - near; ``near wins`` if ``wn >= wf``; ``lost`` if the winner holds less than
-    ``match_fraction`` of ``wgt``, if ``wgt < min_dots d^2`` (fewer dots' energy than
-    ``min_dots`` dots at the pixel's own disparity) or if ``d <= 0``; ``matched`` = the
-    winner's weighted mean disparity ``sum / max(win, 1e-12)``.
-    """
-    frac, eps, nd = _f32(match_fraction), _f32(1e-12), _f32(min_dots)
-    for i in range(d.size):
-        wgt, wn, wd, wnd = sums[4 * i], sums[4 * i + 1], sums[4 * i + 2], sums[4 * i + 3]
-        one_surface = single[i] != 0
+
+@_part
+def _row_sums4(pad, k, row):
+    """k-wide window sums of the 4-channel row ``pad`` (4 (W + k - 1),) (float64, reflected
+    borders) into ``row`` (4 W,), as OpenCV's ``RowSum<float, double>``: k = 3, 5 summed
+    directly, else a running sum per channel, ``s += pad[j + k] - pad[j]`` (float64, in this
+    order)."""
+    w = row.size // 4
+    if k == 3:
+        p1, p2 = pad[4:], pad[8:]
+        for i in range(4 * w):
+            row[i] = (pad[i] + p1[i]) + p2[i]
+        return
+    if k == 5:
+        p1, p2, p3, p4 = pad[4:], pad[8:], pad[12:], pad[16:]
+        for i in range(4 * w):
+            row[i] = (((pad[i] + p1[i]) + p2[i]) + p3[i]) + p4[i]
+        return
+    s0 = s1 = s2 = s3 = 0.0
+    for j in range(k):
+        s0 += pad[4 * j]
+        s1 += pad[4 * j + 1]
+        s2 += pad[4 * j + 2]
+        s3 += pad[4 * j + 3]
+    row[0], row[1], row[2], row[3] = s0, s1, s2, s3
+    ahead, out = pad[4 * k :], row[4:]
+    for c in range(w - 1):
+        s0 += ahead[4 * c] - pad[4 * c]
+        s1 += ahead[4 * c + 1] - pad[4 * c + 1]
+        s2 += ahead[4 * c + 2] - pad[4 * c + 2]
+        s3 += ahead[4 * c + 3] - pad[4 * c + 3]
+        out[4 * c], out[4 * c + 1], out[4 * c + 2], out[4 * c + 3] = s0, s1, s2, s3
+
+
+@_part
+def _decide_row(sums, d, slope, dmax, rmax, tol, nd, frac, matched, lost):
+    """One row's winners from its window sums ``(wgt, wn, wd, wnd)`` (:func:`match_into`)."""
+    one, eps = _f32(1.0), _f32(1e-12)
+    for c in range(d.size):
+        wgt, wn, wd, wnd = sums[4 * c], sums[4 * c + 1], sums[4 * c + 2], sums[4 * c + 3]
+        one_surface = dmax[c] - one / rmax[c] <= slope[c] + tol
         wn = wgt if one_surface else wn
         wnd = wd if one_surface else wnd
         wf = wgt - wn
         win = wn if wn >= wf else wf
-        di = d[i]
-        lost[i] = (win < wgt * frac) | (wgt < nd * di * di) | (di <= 0)
+        di = d[c]
+        lost[c] = (win < wgt * frac) | (wgt < nd * di * di) | (di <= 0)
         total = wnd if wn >= wf else wd - wnd
-        matched[i] = total / (win if win >= eps else eps)
-    return matched
+        matched[c] = total / (win if win >= eps else eps)
 
 
 @_jit
-def noisy_depth_into(field, mean, inv_std, base, sigma, matched, q, step, fb_q, out):
+def match_into(d, dots, slope, tol, dmax, rmax, dmax2, k, min_dots, frac, matched, lost, bufs):
+    """Block matching of a disparity image ``d`` (H, W) float32: window sums and winners.
+
+    Terms per pixel (``dots``: 1 where a projector dot is seen): ``wgt = d^2 dots``; with ``tl
+    = slope + tol``, ``near = d >= dmax2 - tl``; the channels ``(wgt, wn = wgt near, wd = wgt
+    d, wnd = wn d)``, float32. Their k x k window sums are ``cv2.boxFilter(terms, -1, (k, k),
+    normalize=False)``'s operation for operation: float64 row sums (:func:`_row_sums4`), then
+    float64 running column sums, ``s = sum + new`` rounded to float32 and ``sum = s - old``,
+    started from 0 with the first k - 1 rows, rows and columns reflected (``REFLECT_101``).
+
+    Winner: a window whose disparity span ``dmax - 1 / rmax`` (k x k maxima of d and of 1 /
+    d) is within ``tl`` is one surface (the near class is the whole window); else far class =
+    ``wgt - wn``, ``near wins`` if ``wn >= wf``. ``lost`` if the winner holds less than
+    ``frac`` of ``wgt``, if ``wgt < min_dots d^2`` or if ``d <= 0``; ``matched`` = the
+    winner's weighted mean ``sum / max(win, 1e-12)``. ``bufs = (ring, colsum, pad, sums)``:
+    float64 (k, 4 W) (the row sums of the last k rows), (4 W,) (their running column sums) and
+    (4 (W + k - 1),) (a padded row of terms), float32 (4 W,) (a row's window sums); channels
+    interleaved. Rows are streamed: the terms of a row are made where they are summed (twice
+    for the k - 1 rows reflected at the borders).
+    """
+    h, w = d.shape
+    a, w4 = k // 2, 4 * w
+    tol, frac, nd = _f32(tol), _f32(frac), _f32(min_dots)
+    ring, colsum, pad, sums = bufs
+    for e in range(-a, h + a):  # rows of the image reflected by a rows; output row e - a
+        y = _reflect101(e, h)
+        _match_terms_row(d[y], dots[y], slope[y], dmax2[y], tol, a, pad)
+        row = ring[(e + a) % k]
+        _row_sums4(pad, k, row)
+        if e < a:  # the first k - 1 rows start the column sums
+            if e == -a:
+                colsum[:] = 0.0
+            for i in range(w4):
+                colsum[i] += row[i]
+            continue
+        old = ring[(e + a + 1) % k]  # the row sums of row e - (k - 1)
+        for i in range(w4):
+            s = colsum[i] + row[i]
+            sums[i] = np.float32(s)
+            colsum[i] = s - old[i]
+        r = e - a
+        _decide_row(sums, d[r], slope[r], dmax[r], rmax[r], tol, nd, frac, matched[r], lost[r])
+    return matched
+
+
+@numba.njit(inline="always")
+def _noisy_value(field, mean, inv_std, d, inv_fb, sigma, matched, q, inv_step, fb_q, quantise):
+    """One pixel of :func:`noisy_depth_into`."""
+    zero = _f32(0.0)
+    s = ((inv_fb * d) * d) * sigma
+    s = s * s - q
+    f = ((field - mean) * inv_std) * np.sqrt(s if s > zero else zero) + matched
+    return fb_q / np.rint(f * inv_step) if quantise else fb_q / f
+
+
+@_jit
+def noisy_depth_into(field, mean, inv_std, d, inv_fb, sigma, matched, q, step, fb_q, out):
     """Depth (m) from the matched disparity plus window-correlated disparity noise.
 
     ``field``: window sums of random bytes; ``f = (field - mean) inv_std`` (unit variance);
-    ``base = d^2 / fb`` (px/m); ``sd = sqrt(max((base sigma)^2 - q, 0))`` with ``q = step^2 /
-    12``; noisy disparity ``f sd + matched``, rounded to the ``step`` if ``step > 0`` (in
-    units of the step: ``rint(x / step)``, then ``out = fb_q / that`` with ``fb_q = fb /
-    step``; without a step ``fb_q = fb``). All float32, flat.
+    ``base = (inv_fb d) d = d^2 / fb`` (px/m; ``cv2.multiply(d, d, scale=inv_fb)``); ``sd =
+    sqrt(max((base sigma)^2 - q, 0))`` with ``q = step^2 / 12``; noisy disparity ``f sd +
+    matched``, rounded to the ``step`` if ``step > 0`` (in units of the step: ``rint(x /
+    step)``, then ``out = fb_q / that`` with ``fb_q = fb / step``; without a step ``fb_q =
+    fb``). All float32, flat.
     """
-    mean, inv_std, q, zero = _f32(mean), _f32(inv_std), _f32(q), _f32(0.0)
-    inv_step, fb_q = _f32(1.0 / step) if step > 0 else _f32(1.0), _f32(fb_q)
+    mean, inv_std, inv_fb, q, fb_q = _f32(mean), _f32(inv_std), _f32(inv_fb), _f32(q), _f32(fb_q)
+    inv_step = _f32(1.0 / step) if step > 0 else _f32(1.0)
     if step > 0:
         for i in range(field.size):
-            s = base[i] * sigma[i]
-            s = s * s - q
-            f = ((field[i] - mean) * inv_std) * np.sqrt(s if s > zero else zero) + matched[i]
-            out[i] = fb_q / np.rint(f * inv_step)
+            f, di, si, mi = field[i], d[i], sigma[i], matched[i]
+            out[i] = _noisy_value(f, mean, inv_std, di, inv_fb, si, mi, q, inv_step, fb_q, True)
     else:
         for i in range(field.size):
-            s = base[i] * sigma[i]
-            s = s * s - q
-            f = ((field[i] - mean) * inv_std) * np.sqrt(s if s > zero else zero) + matched[i]
-            out[i] = fb_q / f
+            f, di, si, mi = field[i], d[i], sigma[i], matched[i]
+            out[i] = _noisy_value(f, mean, inv_std, di, inv_fb, si, mi, q, inv_step, fb_q, False)
     return out
 
 
 @_jit
-def lateral_resample_into(noisy, level, raw, lut, out):
-    """``out[v, u] = noisy[v + dy, u + dx]`` (clamped to the image, as ``cv2.remap`` nearest with
-    ``BORDER_REPLICATE``), ``dx = lut[level << 8 | raw[4 i]]``, ``dy = lut[level << 8 | raw[4 i
-    + 2]]`` for pixel ``i = v W + u``; ``raw``: (4 H W,) uint8 random bytes, ``lut`` (65536,)
-    int16 offsets (px)."""
+def noisy_depth_drop_into(field, noise, d, sigma, matched, drop, out):
+    """:func:`noisy_depth_into`, then 0 where the depth is missing: ``drop = (z, lost, cos,
+    cos_graze, extra, lo, hi)`` drops pixels with ``z <= 0``, ``lost``, ``cos < cos_graze``
+    (float32; -inf: none), ``extra`` (bool, e.g. specular) or the depth outside ``[lo, hi]``
+    (``np.copyto(out, 0, where=...)``). ``noise = (mean, inv_std, inv_fb, q, step, fb_q)``:
+    :func:`noisy_depth_into`'s numbers. All flat."""
+    mean, inv_std, inv_fb, q, step, fb_q = noise
+    z, lost, cosv, cos_graze, extra, lo, hi = drop
+    mean, inv_std, inv_fb, q, fb_q = _f32(mean), _f32(inv_std), _f32(inv_fb), _f32(q), _f32(fb_q)
+    inv_step = _f32(1.0 / step) if step > 0 else _f32(1.0)
+    cos_graze, lo, hi, zero = _f32(cos_graze), _f32(lo), _f32(hi), _f32(0.0)
+    if step > 0:
+        for i in range(field.size):
+            f, di, si, mi = field[i], d[i], sigma[i], matched[i]
+            x = _noisy_value(f, mean, inv_std, di, inv_fb, si, mi, q, inv_step, fb_q, True)
+            gone = (z[i] <= zero) | lost[i] | (cosv[i] < cos_graze) | extra[i]
+            out[i] = zero if gone | (x < lo) | (x > hi) else x
+    else:
+        for i in range(field.size):
+            f, di, si, mi = field[i], d[i], sigma[i], matched[i]
+            x = _noisy_value(f, mean, inv_std, di, inv_fb, si, mi, q, inv_step, fb_q, False)
+            gone = (z[i] <= zero) | lost[i] | (cosv[i] < cos_graze) | extra[i]
+            out[i] = zero if gone | (x < lo) | (x > hi) else x
+    return out
+
+
+@_jit
+def specular_drop_into(specular, cosv, cos_face, blobs, out):
+    """(H, W) bool: the specular pixels that are missing, ``specular & (cos > cos_face | blob >
+    0.5)`` (a mirror highlight where they face the camera, or inside a random blob). ``blobs =
+    (use, field, dy, dx)``: ``blob[r, c] = field[r + dy, c + dx]`` (float32; not used if not
+    ``use``)."""
+    use, field, dy, dx = blobs
+    face, half = _f32(cos_face), _f32(0.5)
+    h, w = specular.shape
+    for r in range(h):
+        s, cr, o = specular[r], cosv[r], out[r]
+        if use:
+            blob = field[r + dy][dx:]
+            for c in range(w):
+                o[c] = s[c] & ((cr[c] > face) | (blob[c] > half))
+        else:
+            for c in range(w):
+                o[c] = s[c] & (cr[c] > face)
+    return out
+
+
+@_jit
+def lateral_resample_into(noisy, level, raw, lut, unit, out, scratch):
+    """Lateral noise, then the unit's error (``apply_unit`` and the range cut after it).
+
+    ``v[r, k] = noisy[r + dy, k + dx]`` (clamped to the image, as ``cv2.remap`` nearest with
+    ``BORDER_REPLICATE``) in ``scratch``, ``dx = lut[level << 8 | raw[4 i]]``, ``dy =
+    lut[level << 8 | raw[4 i + 2]]`` for pixel ``i = r W + k``; ``raw``: (4 H W,) uint8 random
+    bytes, ``lut`` (65536,) int16 offsets (px). ``unit = (scaled, scale, offset, sx, sy, hi)``:
+    if ``scaled``, ``v = v scale`` (float32), ``+ offset`` where v was > 0, 0 where not > 0;
+    then ``out[r, k] = v[r - sy, k - sx]`` (0 outside) and 0 where ``> hi`` (``scaled =
+    False``, ``sx = sy = 0``, ``hi = inf``: no unit, and ``scratch`` may be ``out``). The
+    gather is a table look-up (scalar); the unit's pass is element-wise.
+    """
+    scaled, scale, offset, sx, sy, hi = unit
+    scale, offset, hi, zero = _f32(scale), _f32(offset), _f32(hi), _f32(0.0)
     h, w = noisy.shape
     for r in range(h):
+        lv, rw, v = level[r], raw[4 * w * r :], scratch[r]
         for k in range(w):
-            i = 4 * (r * w + k)
-            key = np.int64(level[r, k]) << 8
-            x = min(max(k + np.int64(lut[key | raw[i]]), 0), w - 1)
-            y = min(max(r + np.int64(lut[key | raw[i + 2]]), 0), h - 1)
-            out[r, k] = noisy[y, x]
+            key = np.int64(lv[k]) << 8
+            x = min(max(k + np.int64(lut[key | rw[4 * k]]), 0), w - 1)
+            y = min(max(r + np.int64(lut[key | rw[4 * k + 2]]), 0), h - 1)
+            v[k] = noisy[y, x]
+    if not scaled and sx == 0 and sy == 0 and hi == np.inf:
+        if scratch is not out:  # (numba: the same array or not)
+            out[:] = scratch
+        return out
+    k0, k1 = max(sx, 0), min(w + sx, w)  # the columns with a source column
+    for r in range(h):
+        o, y0 = out[r], r - sy
+        if y0 < 0 or y0 >= h or k0 >= k1:
+            for k in range(w):
+                o[k] = zero
+            continue
+        for k in range(k0):
+            o[k] = zero
+        for k in range(k1, w):
+            o[k] = zero
+        src, dst = scratch[y0][k0 - sx :], o[k0:]
+        if scaled:
+            for k in range(k1 - k0):
+                x = src[k]
+                u = x * scale
+                u = u + offset if x > zero else u
+                u = u if u > zero else zero
+                dst[k] = zero if u > hi else u
+        else:
+            for k in range(k1 - k0):
+                x = src[k]
+                dst[k] = zero if x > hi else x
+    return out
+
+
+@_jit
+def shadowed_depth_into(z, fb, tol, mirror, out, scratch):
+    """``out = z * lit`` (float32): z where the projector lights the pixel, by
+    :func:`projector_lit_into`'s test (``mirror``: on the image mirrored left-right, i.e. the
+    projector on the other side), else 0. ``scratch``: (4, W) float32; four rows' running
+    minima at a time (independent chains)."""
+    h, w = z.shape
+    fb, tol, big, zero, one = _f32(fb), _f32(tol), _f32(1e30), _f32(0.0), _f32(1.0)
+    x0, x1, x2, x3 = scratch[0], scratch[1], scratch[2], scratch[3]
+    for r0 in range(0, h, 4):
+        rows = min(4, h - r0)
+        for j in range(4):  # x(p) = p - d along the scan, p from the projector's far side
+            zr, xs = z[r0 + min(j, rows - 1)], scratch[j]
+            if mirror:
+                for p in range(w):
+                    d = fb / zr[w - 1 - p]
+                    xs[p] = _f32(p) - (zero if d > big else d)
+            else:
+                for p in range(w):
+                    d = fb / zr[p]
+                    xs[p] = _f32(p) - (zero if d > big else d)
+        a0, a1, a2, a3 = x0[w - 1], x1[w - 1], x2[w - 1], x3[w - 1]
+        for p in range(w - 2, -1, -1):  # x(p) < min over p' > p of x(p') - tol: lit
+            v0, v1, v2, v3 = x0[p], x1[p], x2[p], x3[p]
+            x0[p] = one if v0 < a0 - tol else zero
+            x1[p] = one if v1 < a1 - tol else zero
+            x2[p] = one if v2 < a2 - tol else zero
+            x3[p] = one if v3 < a3 - tol else zero
+            a0, a1 = (v0 if v0 < a0 else a0), (v1 if v1 < a1 else a1)
+            a2, a3 = (v2 if v2 < a2 else a2), (v3 if v3 < a3 else a3)
+        x0[w - 1] = x1[w - 1] = x2[w - 1] = x3[w - 1] = one
+        for j in range(rows):
+            zr, o, lit = z[r0 + j], out[r0 + j], scratch[j]
+            if mirror:
+                for c in range(w):
+                    o[c] = zr[c] * lit[w - 1 - c]
+            else:
+                for c in range(w):
+                    o[c] = zr[c] * lit[c]
     return out
 
 

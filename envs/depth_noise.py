@@ -37,7 +37,8 @@ it per unit "to allow tweaking"; the per-unit residual is not published there).
 The angle terms use ``theta <= 89 deg`` (axial) and ``<= 80 deg`` (lateral). Gaussian deviates
 come from inverse-CDF tables indexed by random integers (65 536 quantiles for the axial noise,
 256 for the lateral offsets), several times faster than ``rng.standard_normal``; probabilities
-have a resolution of 1/256. A 640x480 frame takes ~4 ms on one core.
+have a resolution of 1/256. A 640x480 frame takes ~3 ms on one core (:data:`STRUCTURED_LIGHT`:
+~5.5 ms; the random words it does not use are skipped by advancing the generator past them).
 """
 
 from __future__ import annotations
@@ -56,11 +57,10 @@ from . import _sensor_kernels as _k
 from .structured_light import (
     BlockMatcher,
     UnitError,
-    apply_unit,
     draw_unit_error,
-    noisy_depth,
+    noise_numbers,
     projector_lit,
-    projector_visible,
+    shadowed_depth,
 )
 
 __all__ = [
@@ -247,12 +247,38 @@ def _random_words(rng: np.random.Generator, n: int) -> np.ndarray:
     return rng.integers(0, 2**64 - 1, size=n, dtype=np.uint64, endpoint=True)
 
 
+def _random_bytes(rng: np.random.Generator, n: int, spans) -> list[np.ndarray]:
+    """Bytes ``[start, stop)`` of ``_random_words(rng, n).view(np.uint8)`` for each of the
+    sorted ``spans``, leaving ``rng`` where drawing all ``n`` words leaves it. With PCG64 and
+    PCG64DXSM (one word per step) only the words the spans touch are drawn; the others are
+    skipped with ``advance`` (the same state, O(log n)), whose reset of the buffered 32-bit half
+    word is undone. Other generators (or spans sharing a word): all ``n`` words are drawn."""
+    bg, words = rng.bit_generator, [(a // 8, -(-b // 8)) for a, b in spans]
+    apart = all(stop <= start for (_, stop), (start, _) in zip(words, words[1:], strict=False))
+    if not (apart and isinstance(bg, (np.random.PCG64, np.random.PCG64DXSM))):
+        raw = _random_words(rng, n).view(np.uint8)
+        return [raw[a:b] for a, b in spans]
+    state, out, pos = bg.state, [], 0
+    for (a, b), (start, stop) in zip(spans, words, strict=True):
+        if start > pos:
+            bg.advance(start - pos)
+        out.append(bg.random_raw(stop - start).view(np.uint8)[a - 8 * start : b - 8 * start])
+        pos = stop
+    if n > pos:
+        bg.advance(n - pos)
+    if state["has_uint32"]:
+        now = bg.state
+        now["has_uint32"], now["uinteger"] = state["has_uint32"], state["uinteger"]
+        bg.state = now
+    return out
+
+
 def _workspace(h: int, w: int) -> SimpleNamespace:
     """Scratch buffers for one image shape (fresh large arrays cost page faults every frame)."""
-    kinds = dict.fromkeys("cos f1 f2 f3 lut noisy".split(), np.float32) | {"level": np.uint8}
-    kinds |= dict.fromkeys("drop edge mask spec spec2".split(), bool)
-    ws = {k: np.empty((h, w), t) for k, t in kinds.items()}
-    extra = dict(field=None, sin_beta=None, grid_key=None)
+    kinds = dict.fromkeys("cos f1 f2 f3 lut noisy zs byte_sums lateral".split(), np.float32)
+    kinds |= {"level": np.uint8} | dict.fromkeys("drop edge mask".split(), bool)
+    ws = {name: np.empty((h, w), t) for name, t in kinds.items()}
+    extra = dict(field=None, sin_beta=None, grid_key=None, none=np.zeros((h, w), bool))
     return SimpleNamespace(**ws, **extra, shape=(h, w))
 
 
@@ -340,7 +366,7 @@ class DepthNoiseModel:
         if cfg.projector_shadow:
             b = self.projector_offset[0]
             if projector_depth is None:
-                lit = projector_visible(z, fx, b)
+                z = shadowed_depth(z, fx, b, out=self._workspace(z.shape).zs)
             else:
                 zp = np.asarray(projector_depth)
                 if zp.shape != z.shape or zp.dtype.kind != "f":
@@ -350,24 +376,29 @@ class DepthNoiseModel:
                     )
                 zp = np.ascontiguousarray(zp, dtype=np.float32)
                 lit = projector_lit(z, zp, fx, b, cfg.shadow_tolerance)
-            z = np.multiply(z, lit, dtype=np.float32)  # shadowed: 0 (z >= 0 and finite)
-        noisy = self._apply(z, float(fx), float(fy), rng, specular, cx, cy)
-        if unit is None:
-            return noisy
-        noisy = apply_unit(noisy, unit)  # the unit measures depth; its range limits what it reports
-        return cv2.threshold(noisy, float(hi), 0, cv2.THRESH_TOZERO_INV, dst=noisy)[1]
+                z = np.multiply(z, lit, dtype=np.float32)  # shadowed: 0 (z >= 0 and finite)
+        return self._apply(z, float(fx), float(fy), rng, specular, cx, cy, unit)
 
-    def _apply(self, z, fx, fy, rng, specular, cx, cy) -> np.ndarray:
+    def _workspace(self, shape: tuple[int, int]) -> SimpleNamespace:
+        """The scratch buffers for images of ``shape`` (made on the first one)."""
+        if self._ws is None or self._ws.shape != shape:
+            self._ws = _workspace(*shape)
+        return self._ws
+
+    def _apply(self, z, fx, fy, rng, specular, cx, cy, unit) -> np.ndarray:
         cfg = self.config
         lo, hi = np.float32(cfg.min_range_m), np.float32(cfg.max_range_m)
         (h, w), n, fx, fy = z.shape, z.size, float(fx), float(fy)
-        if self._ws is None or self._ws.shape != (h, w):
-            self._ws = _workspace(h, w)
-        ws = self._ws
+        ws = self._workspace((h, w))
         cosv = _cos_incidence(z, fx, fy, cx, cy, ws.cos, ws.f1, ws.f2)
         level = cv2.convertScaleAbs(cosv, dst=ws.level, alpha=255.0)  # rint(cos(theta) * 255)
         # 8 random bytes per pixel, planar: 2 axial noise, 4 lateral offsets, 1 edge drop-out.
-        raw = _random_words(rng, n).view(np.uint8)
+        # Block matching uses plane 0 (its window-correlated noise) and planes 2-5 only.
+        if cfg.block_matching:
+            noise_bytes, lateral_bytes = _random_bytes(rng, n, [(0, n), (2 * n, 6 * n)])
+        else:
+            raw = _random_words(rng, n).view(np.uint8)
+            lateral_bytes = raw[2 * n : 6 * n]
 
         # Axial noise, then disparity quantisation.
         angle_term = cv2.LUT(level, self._angle_lut, dst=ws.lut)
@@ -375,22 +406,22 @@ class DepthNoiseModel:
         sigma = ws.f1
         _k.axial_sigma_into(z.reshape(-1), angle_term.reshape(-1), lo, *abc, sigma.reshape(-1))
         noisy = ws.noisy
-        if cfg.block_matching:  # its noise is correlated over the window: from raw bytes
-            lost = self._block_match(z, fx, noisy, sigma, level, cx, cy, raw[:n].reshape(h, w))
-        else:
-            self._gauss.take(raw[: 2 * n].view(np.uint16), out=noisy.reshape(-1), mode="clip")
-            noisy *= sigma
-            noisy += z
-        if cfg.disparity_step_px > 0 and not cfg.block_matching:  # (it quantises disparity)
+        if cfg.block_matching:  # its noise is correlated over the window; with the drop-outs
+            spec = self._specular_mask(cosv, rng, specular, ws)
+            extra = ws.none if spec is None else spec
+            self._block_match(z, fx, noisy, sigma, level, cx, cy, noise_bytes, cosv, extra)
+            return self._lateral(noisy, level, lateral_bytes, unit)
+        self._gauss.take(raw[: 2 * n].view(np.uint16), out=noisy.reshape(-1), mode="clip")
+        noisy *= sigma
+        noisy += z
+        if cfg.disparity_step_px > 0:
             k = np.float32(fx * cfg.baseline_m / cfg.disparity_step_px)
             with np.errstate(divide="ignore", invalid="ignore"):
                 np.divide(k, np.rint(np.divide(k, noisy, out=ws.f1), out=ws.f1), out=noisy)
 
         # Missing depth.
         drop, edge, mask = np.less_equal(z, 0, out=ws.drop), ws.edge, ws.mask
-        if cfg.block_matching:  # the matcher decides what is lost at edges
-            drop |= lost
-        elif self._edge_byte > 0:
+        if self._edge_byte > 0:
             spread = cv2.dilate(z, _K3, dst=ws.f1)
             np.subtract(spread, cv2.erode(z, _K3, dst=ws.f2), out=spread)
             np.greater(spread, np.float32(cfg.edge_threshold_m), out=edge)
@@ -398,21 +429,33 @@ class DepthNoiseModel:
             drop |= np.logical_and(mask, edge, out=mask)
         if cfg.grazing_angle_deg < 90:
             drop |= np.less(cosv, self._cos_graze, out=mask)
-        if specular is not None and self.uses_specular and specular.any():
-            drop |= np.logical_and(specular, self._specular_drop(cosv, rng, ws), out=mask)
+        spec = self._specular_mask(cosv, rng, specular, ws)
+        if spec is not None:
+            drop |= spec
         drop |= np.less(noisy, lo, out=mask)
         drop |= np.greater(noisy, hi, out=mask)
         np.copyto(noisy, 0, where=drop)
+        return self._lateral(noisy, level, lateral_bytes, unit)
 
-        # Lateral noise: sample at a neighbour displaced by a rounded Gaussian offset.
-        if cfg.lateral_sigma_px <= 0 and cfg.lateral_angle_k_px <= 0:
-            return noisy.copy()
-        # offsets (px) lut[level << 8 | byte] for x and y from random bytes 2n + 4i and + 2
+    def _lateral(self, noisy, level, raw, unit) -> np.ndarray:
+        """A new image: ``noisy`` sampled at a neighbour displaced by a rounded Gaussian offset
+        (px, ``lut[level << 8 | byte]`` for x and y from bytes 4i and 4i + 2 of ``raw``; none
+        without lateral noise: the table is 0), then ``unit``'s error (``apply_unit``) and the
+        range cut after it (the unit measures depth; its range limits what it reports)."""
+        if unit is None:
+            terms = (False, 1.0, 0.0, 0, 0, math.inf)
+        else:
+            scaled = unit.depth_scale != 0.0 or unit.depth_offset_m != 0.0
+            scale, (sx, sy) = float(np.float32(1.0 + unit.depth_scale)), unit.shift_px
+            hi = float(np.float32(self.config.max_range_m))
+            terms = (scaled, scale, float(unit.depth_offset_m), int(sx), int(sy), hi)
         out = np.empty_like(noisy)
-        return _k.lateral_resample_into(noisy, level, raw[2 * n : 6 * n], self._lateral_lut, out)
+        scratch = out if unit is None else self._ws.lateral
+        return _k.lateral_resample_into(noisy, level, raw, self._lateral_lut, terms, out, scratch)
 
-    def _block_match(self, z, fx, noisy, sigma, level, cx, cy, random_bytes) -> np.ndarray:
-        """Block-matched depth plus disparity noise in ``noisy`` (before quantisation); lost."""
+    def _block_match(self, z, fx, noisy, sigma, level, cx, cy, random_bytes, cosv, extra):
+        """Block-matched depth plus disparity noise, quantised, in ``noisy``; 0 where it is
+        missing (no return, lost by the matcher, grazing, ``extra`` or out of range)."""
         cfg, ws = self.config, self._ws
         fb = fx * cfg.baseline_m
         if ws.sin_beta is None or ws.sin_beta.shape != z.shape or ws.grid_key != (fx, cx, cy):
@@ -424,23 +467,38 @@ class DepthNoiseModel:
         _k.disparity_slope_into(*flat, fb, 8 * math.sqrt(2) / fx, d.reshape(-1), slope.reshape(-1))
         matched, lost = self._matcher.match(d, slope, cfg.projector_side)
         step, k = cfg.disparity_step_px, cfg.bm_window_px
-        noisy_depth(random_bytes, sigma, d, matched, fb, step, k, out=noisy)
-        return lost
+        b, sums = random_bytes.reshape(z.shape), ws.byte_sums  # exact integer sums
+        cv2.boxFilter(b, cv2.CV_32F, (k, k), dst=sums, normalize=False)
+        graze = self._cos_graze if cfg.grazing_angle_deg < 90 else np.float32(-np.inf)
+        lo, hi = np.float32(cfg.min_range_m), np.float32(cfg.max_range_m)
+        flat = (sums, d, sigma, matched, z, lost, cosv, extra, noisy)
+        sums, d, sigma, matched, z, lost, cosv, extra, out = (x.reshape(-1) for x in flat)
+        drop = (z, lost, cosv, graze, extra, lo, hi)
+        _k.noisy_depth_drop_into(sums, noise_numbers(fb, step, k), d, sigma, matched, drop, out)
 
-    def _specular_drop(self, cosv: np.ndarray, rng: np.random.Generator, ws) -> np.ndarray:
-        """(H, W) bool: highlight (surface facing the camera) or inside a random blob."""
-        (h, w), s = cosv.shape, self.config.specular_blob_px
-        drop = np.greater(cosv, self._cos_face, out=ws.spec)
-        if self._blob_byte > 0:  # cells of s px, interpolated; margin for a random phase
-            lh, lw = h // s + 3, w // s + 3
-            cells = rng.integers(0, 255, size=lh * lw + 2, dtype=np.uint8, endpoint=True)
-            dy, dx = int(cells[-2]) % s, int(cells[-1]) % s
-            cells = (cells[:-2].reshape(lh, lw) < self._blob_byte).astype(np.float32)
-            if ws.field is None or ws.field.shape != ((lh - 1) * s, (lw - 1) * s):
-                ws.field = np.empty(((lh - 1) * s, (lw - 1) * s), np.float32)
-            cv2.resize(cells, ws.field.shape[::-1], dst=ws.field, interpolation=cv2.INTER_LINEAR)
-            drop |= np.greater(ws.field[dy : dy + h, dx : dx + w], np.float32(0.5), out=ws.spec2)
-        return drop
+    def _specular_mask(self, cosv, rng, specular, ws) -> np.ndarray | None:
+        """(H, W) bool: the specular pixels that are missing (draws from ``rng``), or None:
+        a highlight (surface facing the camera) or inside a random blob."""
+        if specular is None or not self.uses_specular or not specular.any():
+            return None
+        blobs = self._blobs(cosv.shape, rng, ws)
+        return _k.specular_drop_into(specular, cosv, self._cos_face, blobs, ws.mask)
+
+    def _blobs(self, shape, rng, ws) -> tuple:
+        """``(use, field, dy, dx)`` of :func:`~ipbench.envs._sensor_kernels.specular_drop_into`:
+        random cells of ``specular_blob_px`` px interpolated, with a margin for a random phase
+        (``lh lw + 2`` draws), or none (no draws) without blobs."""
+        (h, w), s = shape, self.config.specular_blob_px
+        if self._blob_byte <= 0:
+            return False, ws.cos, 0, 0
+        lh, lw = h // s + 3, w // s + 3
+        cells = rng.integers(0, 255, size=lh * lw + 2, dtype=np.uint8, endpoint=True)
+        dy, dx = int(cells[-2]) % s, int(cells[-1]) % s
+        cells = (cells[:-2].reshape(lh, lw) < self._blob_byte).astype(np.float32)
+        if ws.field is None or ws.field.shape != ((lh - 1) * s, (lw - 1) * s):
+            ws.field = np.empty(((lh - 1) * s, (lw - 1) * s), np.float32)
+        cv2.resize(cells, ws.field.shape[::-1], dst=ws.field, interpolation=cv2.INTER_LINEAR)
+        return True, ws.field, dy, dx
 
     @staticmethod
     def _validate(depth, specular) -> np.ndarray:

@@ -65,10 +65,12 @@ __all__ = [
     "apply_unit",
     "disparity",
     "dot_pattern",
+    "noise_numbers",
     "noisy_depth",
     "draw_unit_error",
     "projector_lit",
     "projector_visible",
+    "shadowed_depth",
 ]
 
 
@@ -97,7 +99,8 @@ def draw_unit_error(
 
 
 def apply_unit(depth: np.ndarray, unit: UnitError) -> np.ndarray:
-    """``depth`` (H, W) float32 m, 0 = missing, with ``unit``'s error (in place if unshifted)."""
+    """``depth`` (H, W) float32 m, 0 = missing, with ``unit``'s error (in place if unshifted).
+    (:class:`~ipbench.envs.depth_noise.DepthNoiseModel` applies the same in its lateral pass.)"""
     if unit.depth_scale != 0.0 or unit.depth_offset_m != 0.0:
         valid = np.greater(depth, 0).view(np.uint8)
         depth *= np.float32(1.0 + unit.depth_scale)
@@ -191,6 +194,25 @@ def projector_visible(
     return lit if s > 0 else lit[:, ::-1]
 
 
+def shadowed_depth(
+    depth: np.ndarray, fx: float, baseline_m: float, out: np.ndarray, tolerance_px: float = 0.05
+) -> np.ndarray:
+    """``depth * projector_visible(depth, fx, baseline_m, tolerance_px)`` (float32, in ``out``):
+    0 where the projector does not light the pixel; one compiled pass. ``depth``: (H, W)
+    C-contiguous float32."""
+    fb, scratch = fx * abs(baseline_m), np.empty((4, depth.shape[1]), np.float32)
+    return _k.shadowed_depth_into(depth, fb, tolerance_px, baseline_m <= 0, out, scratch)
+
+
+def noise_numbers(fb: float, step_px: float, k: int) -> tuple[float, ...]:
+    """``(mean, 1 / std, 1 / fb, q, step_px, fb_q)`` of :func:`noisy_depth`: the mean and std
+    of a sum of ``k^2`` uniform bytes, ``q = step^2 / 12``, ``fb_q = fb / step`` (``fb`` if
+    ``step_px`` is 0)."""
+    mean, std = k * k * 127.5, k * math.sqrt((256**2 - 1) / 12.0)
+    fb_q = fb / step_px if step_px > 0 else fb
+    return mean, 1.0 / std, 1.0 / fb, step_px**2 / 12.0, step_px, fb_q
+
+
 def noisy_depth(
     random_bytes: np.ndarray,
     sigma_z: np.ndarray,
@@ -213,14 +235,12 @@ def noisy_depth(
     none). ``sigma_d = sqrt(max((sigma_z d^2 / (f b))^2 - step^2 / 12, 0))``.
     """
     field = cv2.boxFilter(random_bytes, cv2.CV_32F, (k, k), normalize=False)
-    mean, std = k * k * 127.5, k * math.sqrt((256**2 - 1) / 12.0)  # of a sum of k^2 bytes
-    base = cv2.multiply(disparity, disparity, scale=1.0 / fb)
-    fb_q = fb / step_px if step_px > 0 else fb
-    q = step_px**2 / 12.0
-    field, base, sigma_z, matched, flat_out = (
-        x.reshape(-1) for x in (field, base, sigma_z, matched, out)
+    mean, inv_std, inv_fb, q, step, fb_q = noise_numbers(fb, step_px, k)
+    field, disparity, sigma_z, matched, flat_out = (
+        x.reshape(-1) for x in (field, disparity, sigma_z, matched, out)
     )
-    _k.noisy_depth_into(field, mean, 1.0 / std, base, sigma_z, matched, q, step_px, fb_q, flat_out)
+    args = (mean, inv_std, disparity, inv_fb, sigma_z, matched, q, step, fb_q)
+    _k.noisy_depth_into(field, *args, flat_out)
     return out
 
 
@@ -254,40 +274,28 @@ class BlockMatcher:
         float32 ``8 sqrt(2) |grad d|`` bound (px) added to the surface tolerance;
         ``sign``: projector side (+1: +x).
         """
-        d, (h, w) = disparity, disparity.shape
+        d, (h, w), k = disparity, disparity.shape, self.window_px
         if self._ws is None or self._ws.shape != (h, w):
-            f32 = np.float32
+            f32, pad = np.float32, w + k - 1
+            names = "matched dmax rmax dmax2 rec dots".split()
             self._ws = SimpleNamespace(
                 shape=(h, w),
-                w=np.empty((h, w), f32),
-                dmax17=np.empty((h, w), f32),
-                dots=np.empty((h, w), f32),
-                pair=np.empty((h, w, 2), f32),
-                pair9=np.empty((h, w, 2), f32),
-                stack=np.empty((h, w, 4), f32),
-                stack_sums=np.empty((h, w, 4), f32),
-                single=np.empty((h, w), np.uint8),
+                **{name: np.empty((h, w), f32) for name in names},
                 lost=np.empty((h, w), bool),
+                sums=(*(np.empty(n) for n in ((k, 4 * w), 4 * w, 4 * pad)), np.empty(4 * w, f32)),
             )
-        ws, k = self._ws, (self.window_px, self.window_px)
-        # Near class: within tol of the largest disparity of the 17x17 neighbourhood (two 9x9
-        # dilations); a window whose own disparity span (max - min, a pixel without return
-        # counting as 0) is within tol is one surface. Dots seen: the pattern at projector
-        # column u - s d (nearest), weight ~ 1 / z^2 ~ d^2.
-        f = {name: getattr(ws, name).reshape(-1) for name in vars(ws) if name != "shape"}
-        _k.pair_with_reciprocal_into(d.reshape(-1), f["pair"])  # maxima: max d and 1 / min d
-        cv2.dilate(ws.pair, self._kernel, dst=ws.pair9)
-        cv2.dilate(cv2.extractChannel(ws.pair9, 0), self._kernel, dst=ws.dmax17)
+        ws = self._ws
+        # Near class: within tol of the largest disparity of the (2k - 1)^2 neighbourhood (two
+        # k x k dilations); a window whose own disparity span (max d - 1 / max(1 / d), a pixel
+        # without return counting as 0) is within tol is one surface. Dots seen: the pattern at
+        # projector column u - s d (nearest), weight ~ 1 / z^2 ~ d^2. The window sums of (wgt,
+        # wn, wd, wnd) and the winner of each window (the class with more dot energy; too few
+        # dots: less energy than min_dots dots at the pixel's own disparity) in one pass.
+        _k.reciprocal_into(d.reshape(-1), ws.rec.reshape(-1))
+        for src, dst in ((d, ws.dmax), (ws.rec, ws.rmax), (ws.dmax, ws.dmax2)):
+            cv2.dilate(src, self._kernel, dst=dst)
         _k.seen_dots_into(d, dot_pattern((h, w), self.cell_px, self.seed), sign, ws.dots)
-        tol, dflat = self.surface_tol_px, d.reshape(-1)
-        terms = (f["dots"], slope.reshape(-1), tol, f["pair9"], f["dmax17"], f["stack"])
-        _k.match_weights_into(dflat, *terms, f["single"])
-        # Window sums of (wgt, wn, wd, wnd) as one 4-channel image (each channel alone).
-        cv2.boxFilter(ws.stack, -1, k, dst=ws.stack_sums, normalize=False)
-        # Winner: the class with more dot energy (far class = total - near); a single-surface
-        # window's winner is the whole window. Too few dots: less energy than min_dots dots at
-        # the pixel's own disparity.
-        nd, frac = self.min_dots - 0.5, self.match_fraction
-        _k.match_decide_into(f["stack_sums"], f["single"], dflat, nd, frac, f["w"], f["lost"])
-        out, lost = ws.w, ws.lost
-        return out, lost
+        terms = (ws.dots, slope, self.surface_tol_px, ws.dmax, ws.rmax, ws.dmax2, k)
+        rule = (self.min_dots - 0.5, self.match_fraction)
+        _k.match_into(d, *terms, *rule, ws.matched, ws.lost, ws.sums)
+        return ws.matched, ws.lost
