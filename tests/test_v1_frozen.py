@@ -80,7 +80,9 @@ def test_sorting_v1_observations_are_unchanged(recorded, scene, seed):
     for stage in ("reset", "step"):  # intrinsics: pure arithmetic, equal on every machine
         for key in ("wrist_K", "head_left_K", "head_right_K"):
             assert got[stage][key] == want[stage][key], (stage, key)
-    if fingerprint() != recorded["fingerprint"]:
+    if got != want and fingerprint() != recorded["fingerprint"]:
+        # bit-exactness depends on the instruction set (OpenBLAS, llvmpipe), not the vendor:
+        # equal digests on another CPU still pass; only differing ones on another one skip
         pytest.skip(
             f"digests were recorded on {recorded['fingerprint']}, this is {fingerprint()}: "
             "renders and contact physics are bit-exact only on the same machine and libraries"
