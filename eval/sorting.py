@@ -199,7 +199,9 @@ def _validation_evidence(
     conf, correct = [], []
     records = _executor(config)(tasks, under_test, config)
     bar = tqdm(records, total=len(tasks), desc="validation episodes", disable=not progress)
-    for record in bar:
+    # in task order, whatever order the workers finished in: the same evidence file every run
+    order = {(t.scene, t.seed): i for i, t in enumerate(tasks)}
+    for record in sorted(bar, key=lambda r: order[r["scene"], r["seed"]]):
         for d in record["decisions"]:
             if d["true_category"] is not None:
                 conf.append(d["first_confidence"])

@@ -226,3 +226,22 @@ def test_validation_evidence_is_cached_across_targets_and_rebuilt_when_corrupt(
     path.write_text("{not json")
     sorting._threshold(tmp_path, models.gp, "gp", replace(FAST, target_precision=0.9))
     assert "corrupt" in capsys.readouterr().out and calls == [0.95, 0.9]
+
+
+def test_validation_evidence_is_in_task_order_whatever_order_workers_finish(monkeypatch):
+    import ipbench.eval.sorting as sorting
+
+    config = SortingEvalConfig(validation_seeds=(1000, 1001, 1002))
+
+    def executor(cfg):
+        def run(tasks, models, c):  # finished last-first, as a slow first worker would
+            for i, t in reversed(list(enumerate(tasks))):
+                decision = {"true_category": "mug", "first_confidence": i, "first_label": "mug"}
+                yield {"scene": t.scene, "seed": t.seed, "decisions": [decision]}
+
+        return run
+
+    monkeypatch.setattr(sorting, "_executor", executor)
+    conf, correct = sorting._validation_evidence(None, config)
+    assert conf.tolist() == sorted(conf.tolist()) and len(conf) == 3 * len(sorting.SCENES)
+    assert correct.all()
