@@ -67,6 +67,7 @@ import sys
 from collections.abc import Callable, Iterable, Mapping
 from pathlib import Path
 
+from ipbench.eval.cli_options import add_json_option
 from ipbench.eval.digests import STAGES, StageResult, platform_info, run_stages
 
 __all__ = [
@@ -355,13 +356,8 @@ def add_check_parser(sub) -> argparse.ArgumentParser:
         "platform). Exit status 0 for exact and statistical, 1 for differs, 2 when the "
         "reference cannot be read.",
     )
-    parser.add_argument(
-        "--json",
-        nargs="?",
-        const="-",
-        default=None,
-        metavar="FILE",
-        help="write the report as one JSON object to FILE; with no FILE, print only the JSON",
+    add_json_option(
+        parser, "write the report as one JSON object to FILE; with no FILE, print only the JSON"
     )
     parser.add_argument(
         "--reference",

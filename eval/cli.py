@@ -18,6 +18,7 @@ import sys
 from pathlib import Path
 
 from ipbench.eval.check import add_check_parser, main_check
+from ipbench.eval.cli_options import add_json_option
 
 __all__ = ["main", "build_parser"]
 
@@ -64,17 +65,6 @@ class _Parser(argparse.ArgumentParser):
     def __init__(self, *args, **kwargs) -> None:
         kwargs.setdefault("formatter_class", _HelpFormatter)
         super().__init__(*args, **kwargs)
-
-
-def _add_json_option(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument(
-        "--json",
-        nargs="?",
-        const="-",
-        default=None,
-        metavar="FILE",
-        help="also write the figures as one JSON object (to FILE, or stdout with no FILE)",
-    )
 
 
 def _add_env_option(parser: argparse.ArgumentParser, default: str = "ipbench/Sorting-v1") -> None:
@@ -205,7 +195,7 @@ def build_parser() -> argparse.ArgumentParser:
     )
     _add_env_option(sim)
     sim.add_argument("--scene", default="uncluttered", help="scene to measure, one of {SCENES}")
-    _add_json_option(sim)
+    add_json_option(sim)
     bench_perception = bench_sub.add_parser(
         "perception",
         help="segmentation, features and classification time of a cluttered scene; GP fit",
@@ -213,7 +203,7 @@ def build_parser() -> argparse.ArgumentParser:
         "classification seconds (one core); GP and scikit-learn GP fit seconds on ~1,500 "
         "256-d training vectors.",
     )
-    _add_json_option(bench_perception)
+    add_json_option(bench_perception)
     bench_eval = bench_sub.add_parser(
         "eval",
         help="sorting episodes per minute for each policy with 1 and 2 workers",
@@ -233,7 +223,7 @@ def build_parser() -> argparse.ArgumentParser:
     bench_eval.add_argument(
         "--cache", type=Path, default=Path("results/cache"), help="model cache folder"
     )
-    _add_json_option(bench_eval)
+    add_json_option(bench_eval)
     add_check_parser(sub)
     return parser
 
