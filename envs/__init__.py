@@ -13,7 +13,9 @@ observation mode: ``("wrist", "head")`` by default, ``("wrist",)`` renders no he
 released id never changes behaviour: a change bumps the version. ``-v0`` ids keep the first
 manipulation (fully opened jaws, blind descents; see :data:`ipbench.envs.sorting.V0`). ``-v2``
 ids (under development, :data:`UNDER_DEVELOPMENT`) add the v2 object catalogue and
-structured-light depth (:data:`ipbench.envs.sorting.V2`).
+structured-light depth (:data:`ipbench.envs.sorting.V2`), and a third scene, ``"pile"`` (issue 12:
+twenty objects piled, some on others; ``ipbench/SortingPile-v2`` or ``scene="pile"``), which
+v0/v1 ids refuse.
 """
 
 import warnings
@@ -37,6 +39,7 @@ ENV_IDS: dict[str, dict] = {
     "ipbench/Sorting-v2": dict(V2),
     "ipbench/SortingUncluttered-v2": {"scene": "uncluttered", **V2},
     "ipbench/SortingCluttered-v2": {"scene": "cluttered", **V2},
+    "ipbench/SortingPile-v2": {"scene": "pile", **V2},
 }
 """Every registered id and the keyword arguments it fixes."""
 
@@ -44,6 +47,7 @@ UNDER_DEVELOPMENT: tuple[str, ...] = (
     "ipbench/Sorting-v2",
     "ipbench/SortingUncluttered-v2",
     "ipbench/SortingCluttered-v2",
+    "ipbench/SortingPile-v2",
 )
 """Ids whose behaviour may still change (faster physics, grasping) until the issue that makes
 their headline measurement releases them; every other id is released and frozen."""

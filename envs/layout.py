@@ -4,11 +4,14 @@ A layout says which instance stands where and how: the scene's composition per c
 instances drawn from the whole catalogue (known and unknown ones both appear), and poses
 sampled inside the work table's spawn area from the seed. *Uncluttered*: upright objects well
 apart. *Cluttered*: a smaller patch, objects nearly touching and some lying on their side,
-so that they occlude each other from the wrist camera.
+so that they occlude each other from the wrist camera. *Pile* (``Sorting-v2`` only, issue 12):
+twenty objects of every family, a tightly packed base layer and the objects laid on top of it,
+a harder tier with heavy occlusion (:data:`SCENES`, :func:`_place_pile`).
 
 Every seed lays out. A seed whose scene procedure cannot place its objects (of Sorting-v0/v1's
 episode seeds 0-2999 only cluttered 138) gets further attempts from a stream of its own, then,
-as a last resort, its objects upright in rows (which fit every draw of the standard scenes);
+as a last resort, its objects upright in rows (which fit every draw of the standard scenes;
+a pile gets one more attempt from that stream, and an attempt of its almost always succeeds);
 every other seed keeps the layout it always had.
 """
 
@@ -24,6 +27,7 @@ import numpy as np
 from ipbench.assets.objects import (
     CATALOGS,
     CATEGORIES,
+    FAMILIES,
     INSTANCES_PER_CATEGORY,
     ObjectInstance,
     RestingPose,
@@ -32,7 +36,17 @@ from ipbench.assets.objects import (
     resting_poses,
 )
 
-__all__ = ["SceneConfig", "PlacedObject", "Layout", "SCENES", "sample_layout", "LayoutError"]
+__all__ = [
+    "SceneConfig",
+    "PlacedObject",
+    "Layout",
+    "SCENES",
+    "STANDARD_SCENES",
+    "PACKINGS",
+    "scenes_for",
+    "sample_layout",
+    "LayoutError",
+]
 
 
 class LayoutError(ValueError):
@@ -52,7 +66,19 @@ class SceneConfig:
     lying_fraction : fraction of the objects that can lie on their side that do (rounded;
         which ones is drawn from the seed).
     packing : ``"scatter"`` places each object anywhere in the area; ``"cluster"`` places
-        each next to one already placed (``gap`` to 2 ``gap`` away), growing one tight pile.
+        each next to one already placed (``gap`` to 2 ``gap`` away), growing one tight pile;
+        ``"pile"`` packs a base layer on the table as tightly and lays the objects that do
+        not fit, and ``on_top`` more, on top of it (:func:`_place_pile`).
+    on_top : objects laid on the pile whether or not they would fit on the table
+        (``"pile"`` only); ``lying_fraction`` is then the base layer's.
+    gentle_settle : longest physics time (s) of a gentle settling at reset, before the
+        environment's ``settle_time``: the objects' motion damped until they are at rest
+        (0: none; a pile's objects come down onto the others that way, see
+        ``SortingEnv._settle_gently``).
+    every_family : the draw holds every family of each category at least once (each
+        category's count must be at least its number of families; v2 catalogue).
+    catalogs : the object catalogues the scene exists in (a scene built for the v2 families
+        is not one of the released ``Sorting-v0``/``-v1``'s).
     """
 
     name: str
@@ -61,6 +87,10 @@ class SceneConfig:
     gap: float = 0.03
     lying_fraction: float = 0.0
     packing: str = "scatter"
+    on_top: int = 0
+    gentle_settle: float = 0.0
+    every_family: bool = False
+    catalogs: tuple[str, ...] = CATALOGS
 
     @property
     def n_objects(self) -> int:
@@ -74,7 +104,42 @@ SCENES: dict[str, SceneConfig] = {
     "cluttered": SceneConfig(
         "cluttered", (4, 2, 3, 3, 2), gap=0.0, lying_fraction=0.2, packing="cluster"
     ),
+    # Issue 12: a harder tier than cluttered, with heavy mutual occlusion from the wrist
+    # camera. 4 of each category: 20 objects, every bin equally often the right one, and the
+    # fewest equal counts that hold all families of every category (3 or 4 each) in every
+    # pile. In cluttered's spawn area (the robot reaches it) their footprints cover about all
+    # the area: about 10 form a base layer on the table, half of those that can lie on their
+    # side lying, and the others (6 to 12, at least 3) are laid on top of them, hiding parts
+    # of them. They come to rest there in a gentle settling at reset (at most 6 s of physics,
+    # 2.7 s on average: the objects of the other scenes start at rest and settle in 0.3 s).
+    # v2 catalogue only (its families).
+    "pile": SceneConfig(
+        "pile",
+        (4, 4, 4, 4, 4),
+        gap=0.0,
+        lying_fraction=0.5,
+        packing="pile",
+        on_top=3,
+        gentle_settle=6.0,
+        every_family=True,
+        catalogs=("v2",),
+    ),
 }
+"""Every scene, by name. :data:`STANDARD_SCENES` are the released ones (thesis Table 5.1),
+on every id; ``"pile"`` exists on ``Sorting-v2`` only (:func:`scenes_for`)."""
+
+STANDARD_SCENES: tuple[str, ...] = ("uncluttered", "cluttered")
+"""The thesis's scenes (Table 5.1), the released ids' only ones: what the released
+evaluation's validation episodes, perception scores and stage digests iterate over."""
+
+PACKINGS: tuple[str, ...] = ("scatter", "cluster", "pile")
+"""The valid :attr:`SceneConfig.packing` values."""
+
+
+def scenes_for(catalog: str) -> tuple[str, ...]:
+    """The names of the scenes that exist in object catalogue ``catalog`` (``"v1"``: the
+    standard scenes; ``"v2"``: also ``"pile"``), in :data:`SCENES` order."""
+    return tuple(name for name, config in SCENES.items() if catalog in config.catalogs)
 
 
 @dataclass(frozen=True)
@@ -168,16 +233,26 @@ def sample_layout(
     table_height : z of the table top (m).
     catalog : the object catalogue the instances come from (``"v1"``: 12 instances per
         category, known and unknown both appear; ``"v2"``: every family and split of each
-        category can appear, and at least two splits do).
+        category can appear, and at least two splits do). A scene exists in the catalogues
+        of its :attr:`SceneConfig.catalogs` only (``"pile"``: v2).
     """
-    if isinstance(scene, SceneConfig) and scene.packing not in ("scatter", "cluster"):
-        raise LayoutError(f"unknown packing {scene.packing!r}; valid: scatter, cluster")
+    if isinstance(scene, SceneConfig) and scene.packing not in PACKINGS:
+        raise LayoutError(f"unknown packing {scene.packing!r}; valid: {', '.join(PACKINGS)}")
     if isinstance(scene, str):
         if scene not in SCENES:
             raise LayoutError(f"unknown scene {scene!r}; valid scenes: {', '.join(SCENES)}")
         scene = SCENES[scene]
     if catalog not in CATALOGS:
         raise LayoutError(f"unknown catalog {catalog!r}; valid: {', '.join(CATALOGS)}")
+    if catalog not in scene.catalogs:
+        raise LayoutError(
+            f"scene {scene.name!r} does not exist in catalog {catalog!r} (it needs "
+            f"{', '.join(scene.catalogs)}); valid scenes of catalog {catalog!r}: "
+            f"{', '.join(scenes_for(catalog))}"
+        )
+    # a pile's placement, also its last resort (the standard scenes': _place, _place_in_rows)
+    place = _place_pile if scene.packing == "pile" else _place
+    in_rows = _place_pile if scene.packing == "pile" else _place_in_rows
     rng = np.random.default_rng([seed, 2018])
     # v1 draws its objects once; v2's larger families (2 L cartons, soup bowls) do not always
     # fit one pile: it draws the objects again (from the same seeded stream) when they do not
@@ -185,7 +260,7 @@ def sample_layout(
     for _ in range(draws):
         picks = _pick_v1(scene, rng) if catalog == "v1" else _pick(scene, rng, catalog)
         for _ in range(restarts if catalog == "v1" else _V2_RESTARTS):
-            placed = _place(scene, picks, rng, area_center, area_half, table_height, max_tries)
+            placed = place(scene, picks, rng, area_center, area_half, table_height, max_tries)
             if placed is not None:
                 return Layout(scene=scene.name, seed=int(seed), objects=placed)
     # Only seeds the procedure above cannot place come here (of Sorting-v0/v1's episode seeds
@@ -193,10 +268,10 @@ def sample_layout(
     # same objects from a stream of their own, then rows, which always fit the standard scenes.
     fallback = np.random.default_rng([seed, 2018, 1])
     for _ in range(_FALLBACK_ATTEMPTS):
-        placed = _place(scene, picks, fallback, area_center, area_half, table_height, max_tries)
+        placed = place(scene, picks, fallback, area_center, area_half, table_height, max_tries)
         if placed is not None:
             return Layout(scene=scene.name, seed=int(seed), objects=placed)
-    placed = _place_in_rows(scene, picks, fallback, area_center, area_half, table_height)
+    placed = in_rows(scene, picks, fallback, area_center, area_half, table_height)
     if placed is not None:
         return Layout(scene=scene.name, seed=int(seed), objects=placed)
     raise LayoutError(
@@ -231,6 +306,8 @@ def _pick(scene: SceneConfig, rng: np.random.Generator, catalog: str) -> list[Ob
     appear, without repeats); redrawn until at least two splits appear."""
     every = instances(catalog=catalog)
     pools = {cat: [inst for inst in every if inst.category == cat] for cat in CATEGORIES}
+    if scene.every_family:
+        return _pick_every_family(scene, rng, pools)
     while True:
         picks = [
             pools[cat][int(i)]
@@ -241,19 +318,46 @@ def _pick(scene: SceneConfig, rng: np.random.Generator, catalog: str) -> list[Ob
             return picks
 
 
-def _place(scene, picks, rng, area_center, area_half, table_height, max_tries):
+def _pick_every_family(
+    scene: SceneConfig, rng: np.random.Generator, pools: dict[str, list[ObjectInstance]]
+) -> list[ObjectInstance]:
+    """One instance of every family of each category (which one drawn from its family), then
+    the category's remaining count from its other instances, without repeats. Every split
+    appears (each category's last family is the novel one)."""
+    picks = []
+    for cat, n in zip(CATEGORIES, scene.counts, strict=True):
+        families = FAMILIES[cat]
+        if n < len(families):
+            raise LayoutError(
+                f"scene {scene.name!r} draws every family but has {n} {cat} for its "
+                f"{len(families)} families ({', '.join(families)}); give it at least "
+                f"{len(families)}"
+            )
+        chosen = []
+        for family in families:
+            members = [k for k, inst in enumerate(pools[cat]) if inst.family == family]
+            chosen.append(members[int(rng.integers(len(members)))])
+        rest = [k for k in range(len(pools[cat])) if k not in chosen]
+        chosen += [rest[int(i)] for i in rng.choice(len(rest), size=n - len(chosen), replace=False)]
+        picks += [pools[cat][k] for k in chosen]
+    return picks
+
+
+def _place(scene, picks, rng, area_center, area_half, table_height, max_tries, poses=None):
     """One attempt at placing ``picks``, largest first; ``None`` if an object did not fit.
 
     Object ids follow a random order (so an id says nothing about the category). The draws
     and the arithmetic of every stored value are those of Sorting-v0's procedure; the free-space
     test is :func:`_is_free` (the same rectangles, scalar and with bounding-circle shortcuts:
-    most tries of a dense pile fail, so the test dominates the time)."""
-    poses = [resting_poses(inst)[0] for inst in picks]
-    can_lie = [
-        k for k, inst in enumerate(picks) if any(p.name == "side" for p in resting_poses(inst))
-    ]
-    for k in rng.permutation(can_lie)[: int(round(scene.lying_fraction * len(can_lie)))]:
-        poses[k] = next(p for p in resting_poses(picks[k]) if p.name == "side")
+    most tries of a dense pile fail, so the test dominates the time). ``poses``: the picks'
+    resting poses, chosen by the caller (a pile's base layer); by default drawn here."""
+    if poses is None:
+        poses = [resting_poses(inst)[0] for inst in picks]
+        can_lie = [
+            k for k, inst in enumerate(picks) if any(p.name == "side" for p in resting_poses(inst))
+        ]
+        for k in rng.permutation(can_lie)[: int(round(scene.lying_fraction * len(can_lie)))]:
+            poses[k] = next(p for p in resting_poses(picks[k]) if p.name == "side")
     footprints = [_footprint(inst, pose) for inst, pose in zip(picks, poses, strict=True)]
     order = sorted(rng.permutation(len(picks)), key=lambda k: -np.prod(footprints[k][1]))
     half = np.asarray(area_half[:2], float) * np.asarray(scene.area_fraction)
@@ -423,3 +527,182 @@ def _place_in_rows(scene, picks, rng, area_center, area_half, table_height):
             across += row_depth + gap
         return tuple(sorted(placed, key=lambda o: o.object_id))
     return None
+
+
+# -- the pile (issue 12) ------------------------------------------------------------------------
+PILE_TABLE_TRIES = 256
+"""Positions a base object of a pile draws on the table (half of them next to an object
+already there); it takes the free one nearest the centre of the area, or, with none free, is
+laid on the pile instead."""
+PILE_TOP_TRIES = 128
+"""Poses an object laid on the pile draws; it takes the lowest."""
+PILE_TOP_ROUNDS = 4
+"""Draws of :data:`PILE_TOP_TRIES` poses an object laid on the pile gets to find one at most
+:data:`PILE_MAX_LIFT` high."""
+PILE_TOP_AREA = 0.8
+"""Fraction of the area (in x and y), around its centre, that the footprints of objects laid
+on the pile stay inside: one that slides off the pile still stops on the table."""
+PILE_MAX_LIFT = 0.25
+"""Highest (m above the table) an object may be laid on the pile (lower poses are taken when
+there are any): the pile stays a heap two or three objects high, every object's centre below
+the 0.35 m above the table that counts as on it (:func:`~ipbench.envs.world.object_status`);
+an attempt with an object that finds no pose this low fails."""
+PILE_CLEARANCE = 0.003
+"""Gap (m) between the lowest point of an object laid on the pile and the highest top under it
+(bounding boxes): no object starts inside another; the settling at reset brings it down."""
+_BASE_ONLY = ("juice_bottle", "bowl")
+"""Categories not drawn to be laid on the pile: a bottle on a heap rolls off (round) or
+topples (standing), a bowl on it rocks on its rim; they stand or lie on the table."""
+_LIE_ON_PILE = ("milk_carton", "juice_box")
+"""Categories that lie on their side when laid on the pile (flat faces: they stay put); mugs
+stand on it."""
+
+
+_pile_footprint = cache(_footprint)
+""":func:`_footprint`, cached (every pile attempt needs those of its objects)."""
+
+
+@cache
+def _top(inst: ObjectInstance, pose: RestingPose) -> float:
+    """Height (m) of the top of ``inst``'s bounding box above the table in resting ``pose``
+    (any yaw)."""
+    half = 0.5 * np.asarray(inst.size)
+    signs = np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)])
+    corners = np.asarray(inst.center) + signs * half
+    rot = np.empty(9)
+    mujoco.mju_quat2Mat(rot, np.asarray(pose.quat, float))
+    return float(pose.height + (corners @ rot.reshape(3, 3).T)[:, 2].max())
+
+
+def _overlap_matrix(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """(T, N) whether rectangle ``a[t]`` overlaps (or touches) rectangle ``b[n]``; rows are
+    (x, y, hx, hy, cos yaw, sin yaw): centre (m), half extents (m), orientation. The
+    separating-axis test of :func:`_overlaps`, over every pair at once."""
+    ax, ay, ahx, ahy, ac, as_ = (a[:, i, None] for i in range(6))
+    bx, by, bhx, bhy, bc, bs = (b[None, :, i] for i in range(6))
+    dx, dy = bx - ax, by - ay
+    cos_d = np.abs(ac * bc + as_ * bs)  # |cos| and |sin| of the yaw difference
+    sin_d = np.abs(as_ * bc - ac * bs)
+    separated = (
+        (np.abs(ac * dx + as_ * dy) > ahx + bhx * cos_d + bhy * sin_d)
+        | (np.abs(-as_ * dx + ac * dy) > ahy + bhx * sin_d + bhy * cos_d)
+        | (np.abs(bc * dx + bs * dy) > bhx + ahx * cos_d + ahy * sin_d)
+        | (np.abs(-bs * dx + bc * dy) > bhy + ahx * sin_d + ahy * cos_d)
+    )
+    return ~separated
+
+
+def _place_pile(scene, picks, rng, area_center, area_half, table_height, max_tries=None):
+    """One attempt at a pile (``packing="pile"``); ``None`` if an object laid on the pile
+    found no pose at most :data:`PILE_MAX_LIFT` high (about one attempt in four).
+
+    ``scene.on_top`` objects drawn from ``rng`` (no juice bottle or bowl) are laid on the
+    pile; the others form the base layer on the table, ``scene.lying_fraction`` of those
+    that can lie there on their side (rounded; which ones drawn from ``rng``). Every object
+    turns by a yaw drawn from ``rng`` and has its footprint inside the area.
+
+    Base objects, juice bottles and bowls first (they are not drawn for the pile), each group
+    largest footprint first (ties in an order drawn from ``rng``), draw
+    :data:`PILE_TABLE_TRIES` positions and take the free one (overlapping no footprint placed
+    before) nearest the centre of the area, which packs them tightly, like ``"cluster"``; one
+    with none free is laid on the pile too. Milk cartons and juice boxes laid on the pile lie
+    on their side, mugs stand. Each, largest first, draws :data:`PILE_TOP_TRIES` poses (its
+    footprint's centre over the middle half of a base object's footprint, the footprint inside
+    :data:`PILE_TOP_AREA` of the area; up to :data:`PILE_TOP_ROUNDS` draws until one is at most
+    :data:`PILE_MAX_LIFT` high) and takes the lowest, as an object dropped on a heap settles
+    low: its lowest point :data:`PILE_CLEARANCE` above the highest top (bounding boxes) of the
+    objects under its footprint, base objects and those laid before. Object ids are drawn from
+    ``rng``.
+
+    The layout stays free of simulation: no object starts inside another, and the gentle
+    settling at reset (:attr:`SceneConfig.gentle_settle`) brings those laid on the pile down
+    onto the others. ``max_tries`` is not used (the tries above are the pile's)."""
+    n = len(picks)
+    can_top = [k for k in range(n) if picks[k].category not in _BASE_ONLY]
+    drawn = rng.choice(len(can_top), size=min(scene.on_top, len(can_top)), replace=False)
+    on_top = {can_top[int(i)] for i in drawn}
+    poses = [resting_poses(inst)[0] for inst in picks]
+    sides = [next((p for p in resting_poses(inst) if p.name == "side"), None) for inst in picks]
+    can_lie = [k for k in range(n) if sides[k] is not None and k not in on_top]
+    for k in rng.permutation(can_lie)[: int(round(scene.lying_fraction * len(can_lie)))]:
+        poses[k] = sides[k]
+    footprints = [_pile_footprint(i, p) for i, p in zip(picks, poses, strict=True)]
+    order = sorted(
+        rng.permutation(n),
+        key=lambda k: (picks[k].category not in _BASE_ONLY, -np.prod(footprints[k][1])),
+    )
+    half = np.asarray(area_half[:2], float) * np.asarray(scene.area_fraction)
+    center = np.asarray(area_center[:2], float)
+    rects = np.empty((0, 6))  # (x, y, hx, hy, cos yaw, sin yaw) of every object placed
+    tops = np.empty(0)  # and the height of its top above the table (m)
+    where: dict[int, tuple[np.ndarray, float, float]] = {}  # k -> footprint centre, yaw, lift
+
+    def candidates(k: int, mid: np.ndarray, yaw: np.ndarray, room: np.ndarray) -> np.ndarray:
+        """(T, 6) rectangles of pick ``k`` centred at ``mid`` (T, 2) turned by ``yaw`` (T,),
+        without those whose footprint leaves the area of half extents ``room`` (m)."""
+        hx, hy = footprints[k][1]
+        c, s = np.cos(yaw), np.sin(yaw)
+        extent = np.stack([np.abs(c) * hx + np.abs(s) * hy, np.abs(s) * hx + np.abs(c) * hy], 1)
+        inside = np.all(np.abs(mid - center) <= room - extent, axis=1)
+        rows = np.column_stack([mid, np.full(len(yaw), hx), np.full(len(yaw), hy), c, s])
+        return rows[inside]
+
+    def put(k: int, rect: np.ndarray, lift: float) -> None:
+        nonlocal rects, tops
+        rects = np.vstack([rects, rect])
+        tops = np.append(tops, lift + _top(picks[k], poses[k]))
+        where[k] = (rect[:2], math.atan2(rect[5], rect[4]), lift)
+
+    later = [k for k in order if k in on_top]
+    for k in order:
+        if k in on_top:
+            continue
+        yaw = rng.uniform(-np.pi, np.pi, PILE_TABLE_TRIES)
+        mid = center + rng.uniform(-1.0, 1.0, (PILE_TABLE_TRIES, 2)) * half
+        if len(rects):  # half of them next to a placed object (centres between touching radii)
+            m = PILE_TABLE_TRIES // 2
+            nb = rects[rng.integers(len(rects), size=m)]
+            angle = rng.uniform(-np.pi, np.pi, m)
+            hx, hy = footprints[k][1]
+            r_in = min(hx, hy) + np.minimum(nb[:, 2], nb[:, 3])
+            r_out = math.hypot(hx, hy) + np.hypot(nb[:, 2], nb[:, 3])
+            dist = r_in + rng.uniform(0.0, 1.0, m) * (r_out - r_in)
+            mid[:m] = nb[:, :2] + dist[:, None] * np.stack([np.cos(angle), np.sin(angle)], 1)
+        cand = candidates(k, mid, yaw, half)
+        if len(rects):
+            cand = cand[~_overlap_matrix(cand, rects).any(axis=1)]
+        if len(cand):
+            put(k, cand[np.argmin(np.hypot(*(cand[:, :2] - center).T))], 0.0)
+        else:
+            later.append(k)  # no room on the table: on the pile
+    n_base = len(rects)
+    if not n_base:
+        return None
+    for k in later:
+        if picks[k].category in _LIE_ON_PILE and sides[k] is not None:
+            poses[k] = sides[k]
+            footprints[k] = _pile_footprint(picks[k], poses[k])
+    for k in sorted(later, key=lambda k: -np.prod(footprints[k][1])):
+        for _ in range(PILE_TOP_ROUNDS):
+            support = rects[rng.integers(n_base, size=PILE_TOP_TRIES)]
+            yaw = rng.uniform(-np.pi, np.pi, PILE_TOP_TRIES)
+            u, v = (rng.uniform(-0.5, 0.5, (PILE_TOP_TRIES, 2)) * support[:, 2:4]).T
+            mid = support[:, :2] + np.stack(
+                [support[:, 4] * u - support[:, 5] * v, support[:, 5] * u + support[:, 4] * v], 1
+            )
+            cand = candidates(k, mid, yaw, PILE_TOP_AREA * half)
+            under = np.where(_overlap_matrix(cand, rects), tops, 0.0).max(axis=1)
+            if len(cand) and under.min() <= PILE_MAX_LIFT:
+                break
+        else:
+            return None
+        best = int(np.argmin(under))
+        put(k, cand[best], float(under[best]) + PILE_CLEARANCE)
+    ids = rng.permutation(n)  # object id of each pick
+    placed = []
+    for k, (mid, yaw, lift) in where.items():
+        offset = footprints[k][0]
+        c, s = math.cos(yaw), math.sin(yaw)
+        xy = mid - [c * offset[0] - s * offset[1], s * offset[0] + c * offset[1]]
+        placed.append(_placed(int(ids[k]), picks[k], poses[k], xy, yaw, table_height + lift))
+    return tuple(sorted(placed, key=lambda o: o.object_id))

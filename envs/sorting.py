@@ -12,8 +12,9 @@ documents it):
   it and set it down in the inspection area (or, when an object is already there or in
   hand, turn it by ``yaw`` there); ``2 = inspect_in_hand``: pick it and present it to the
   wrist camera (or, with an object in hand or in the area, turn it by ``yaw`` and present it
-  again). While an object
-  is in hand or in the area, ``place_in_bin`` acts on it and ``position`` is ignored. Each
+  again); v2 only (``Discrete(4)``): ``3 = pick`` (:data:`PICK`): pick it and hold it. While
+  an object is in hand or in the area, ``place_in_bin`` acts on it and ``position`` is
+  ignored. Each
   inspect step's observation is the new view; after ``place_in_bin`` the camera looks at
   the table again.
 * Observation: ``wrist_rgb`` (480x640x3 uint8), ``wrist_depth`` (480x640 float32, m, 0 =
@@ -69,7 +70,7 @@ from ipbench.assets.compose import (
 )
 from ipbench.assets.objects import CATALOGS, CATEGORIES
 from ipbench.envs.depth_noise import STRUCTURED_LIGHT, DepthNoiseConfig, DepthNoiseModel
-from ipbench.envs.layout import SCENES, Layout, sample_layout
+from ipbench.envs.layout import SCENES, Layout, sample_layout, scenes_for
 from ipbench.envs.robot import MotionConfig, RobotController, ik_model
 from ipbench.envs.sensors import (
     SensorRenderer,
@@ -90,6 +91,7 @@ from ipbench.envs.world import (
 __all__ = [
     "CAMERAS",
     "COMMANDS",
+    "PICK",
     "ROBOT_JOINTS",
     "WRIST_CAMERA",
     "InvalidActionError",
@@ -104,7 +106,12 @@ __all__ = [
 ]
 
 COMMANDS = ("place_in_bin", "inspect_in_area", "inspect_in_hand")
-"""Meaning of ``action["command"]``."""
+"""Meaning of ``action["command"]`` (v0, v1); ``Sorting-v2`` adds :data:`PICK`."""
+PICK = "pick"
+"""``Sorting-v2``'s command 3: pick the object at ``position`` and hold it above the table (the
+camera keeps looking at the table); the next ``place_in_bin`` puts it into a bin. A pick
+followed by a place moves the robot exactly as one ``place_in_bin`` does, with an observation
+in between (e.g. for a policy that wants to know what it holds before choosing the bin)."""
 WRIST_CAMERA = f"{CAMERA_ARM}_wrist_camera"
 CAMERAS: tuple[str, ...] = ("wrist", "head")
 """The cameras an observation can hold (:attr:`SortingConfig.cameras`), in this order:
@@ -121,6 +128,16 @@ ROBOT_JOINTS: tuple[str, ...] = (
 """Joint names of ``observation["qpos"]``, in order (rad; the two fingers in m)."""
 WRIST_SIZE = (480, 640)
 _UNSAFE = {"on_table", "in_inspection_area", "in_hand"}
+_GENTLE_TAU = 0.1
+"""Time constant (s) with which a gentle settling damps the objects' velocities."""
+_REST_SPEED, _REST_SPIN = 0.005, 0.05
+"""Speeds (m/s, rad/s) below which every object counts as at rest (gentle settling)."""
+_REST_CHECK = 0.05
+"""Physics time (s) between the checks of a gentle settling."""
+_RELEASE_CALM = 5
+"""Checks in a row that must find the objects at rest, undamped, to end a gentle settling."""
+_WAKE_SPEED = 0.02
+"""Speed (m/s) of an object that damps the objects again during a gentle settling."""
 UNDONE_REASON = "undone: the contact solver blew up during this step, which was rolled back"
 MAX_JAW_OPENING = 0.21
 """The gripper's full jaw opening (m): the largest ``action["opening"]``."""
@@ -182,7 +199,8 @@ class SortingConfig:
 
     Attributes
     ----------
-    scene : ``"uncluttered"`` or ``"cluttered"`` (thesis Table 5.1).
+    scene : ``"uncluttered"`` or ``"cluttered"`` (thesis Table 5.1); with the v2 catalogue
+        also ``"pile"`` (issue 12, :data:`~ipbench.envs.layout.SCENES`).
     head_size : (height, width) of each head image, px (D5100-like 3:2).
     render_size : (height, width) of ``render()`` frames from the overview camera, px.
     max_steps : step limit (truncation); ``None`` = 4 per object + 10.
@@ -209,6 +227,7 @@ class SortingConfig:
         are those of the default. Without ``"wrist"`` the wrist's depth noise is not drawn
         either (and ``info`` has no ``wrist_mask``), so an unseeded ``reset()`` after an
         episode then lays out other objects than the default would; seeded resets agree.
+    pick_command : the action's ``command`` has a fourth value, :data:`PICK` (``Sorting-v2``).
     physics : physics options on top of the work cell's MJCF
         (:class:`~ipbench.envs.world.PhysicsConfig`; the default changes nothing, as v0/v1
         run; ``Sorting-v2``: :data:`~ipbench.envs.world.FAST_PHYSICS`, objects at rest
@@ -231,6 +250,7 @@ class SortingConfig:
     catalog: str = "v1"
     cameras: tuple[str, ...] = CAMERAS
     physics: PhysicsConfig = field(default_factory=PhysicsConfig)
+    pick_command: bool = False
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "cameras", _cameras(self.cameras))
@@ -246,11 +266,17 @@ V0: dict = {
 """The settings ``Sorting-v0`` fixes: no jaw pre-shaping, blind descents, fingers stepped
 shut, light fingers, 24 cm deep bins, and a blow-up truncates the episode."""
 
-V2: dict = {"catalog": "v2", "depth_noise": STRUCTURED_LIGHT, "physics": FAST_PHYSICS}
+V2: dict = {
+    "catalog": "v2",
+    "depth_noise": STRUCTURED_LIGHT,
+    "physics": FAST_PHYSICS,
+    "pick_command": True,
+}
 """The settings ``Sorting-v2`` (under development) adds to v1: the v2 object catalogue (real
 product families, printed textures, train / similar / novel splits), structured-light
 depth as the sensor makes it (projector shadow, disparity block matching, per-unit error),
-and faster physics (:data:`~ipbench.envs.world.FAST_PHYSICS`: objects at rest sleep)."""
+faster physics (:data:`~ipbench.envs.world.FAST_PHYSICS`: objects at rest sleep), and the
+:data:`PICK` command."""
 
 
 class SortingEnv(gym.Env):
@@ -266,10 +292,16 @@ class SortingEnv(gym.Env):
             raise ValueError(
                 f"unknown catalog {self.config.catalog!r}; valid: {', '.join(CATALOGS)}"
             )
-        if self.config.scene not in SCENES:
-            raise ValueError(
-                f"unknown scene {self.config.scene!r}; valid scenes: {', '.join(SCENES)}"
-            )
+        valid_scenes = scenes_for(self.config.catalog)  # "pile": v2 only
+        if self.config.scene not in valid_scenes:
+            what = f"unknown scene {self.config.scene!r}"
+            if self.config.scene in SCENES:
+                needs = ", ".join(SCENES[self.config.scene].catalogs)
+                what = (
+                    f"scene {self.config.scene!r} needs the {needs} catalogue (Sorting-v2), "
+                    f"not {self.config.catalog!r}"
+                )
+            raise ValueError(f"{what}; valid scenes: {', '.join(valid_scenes)}")
         self.render_mode = render_mode
         self._n_objects = SCENES[self.config.scene].n_objects
         self.max_steps = self.config.max_steps or 4 * self._n_objects + 10
@@ -303,7 +335,7 @@ class SortingEnv(gym.Env):
         self.observation_space = spaces.Dict(obs_spaces)  # (keys sorted, as before)
         self.action_space = spaces.Dict(
             {
-                "command": spaces.Discrete(len(COMMANDS)),
+                "command": spaces.Discrete(len(self.commands)),
                 "position": spaces.Box(
                     np.array([-2.0, -2.0, 0.0], np.float32),
                     np.array([2.0, 2.0, 2.5], np.float32),
@@ -316,6 +348,11 @@ class SortingEnv(gym.Env):
         )
         if self.config.jaw_opening:
             self.action_space.spaces["opening"] = spaces.Box(0.0, MAX_JAW_OPENING, (1,), np.float32)
+
+    @property
+    def commands(self) -> tuple[str, ...]:
+        """Meaning of ``action["command"]``: :data:`COMMANDS`, and :data:`PICK` in v2."""
+        return COMMANDS + ((PICK,) if self.config.pick_command else ())
 
     # -- frames for videos -----------------------------------------------------------------
     def add_frame_listener(self, callback: Callable[[], None], fps: float = 30.0) -> None:
@@ -379,6 +416,8 @@ class SortingEnv(gym.Env):
             self._renderer.close()
         self._renderer = SensorRenderer(self.model)
         self._place_arms_at_start()
+        if SCENES[self.config.scene].gentle_settle > 0:  # a pile (v2 only)
+            self._settle_gently(SCENES[self.config.scene].gentle_settle)
         self.robot.hold(self.config.settle_time)
         # (ngeom + 1,): shiny geoms; the last entry stands for the background (id -1)
         self._specular_geoms = np.append(specular_geoms(self.model), False)
@@ -413,7 +452,7 @@ class SortingEnv(gym.Env):
         undone = blew_up and snapshot is not None
         if undone:
             self._restore(snapshot)
-            name = results[0].name if results else COMMANDS[command]
+            name = results[0].name if results else self.commands[command]
             results = [SkillResult(name, False, UNDONE_REASON, 0.0)]
         before = self._statuses
         self._statuses = self._all_statuses()
@@ -476,7 +515,7 @@ class SortingEnv(gym.Env):
                     and space.contains(np.int64(value))
                 )
                 if not ok:
-                    names = CATEGORIES if key == "bin" else COMMANDS
+                    names = CATEGORIES if key == "bin" else self.commands
                     valid = ", ".join(f"{i}={n}" for i, n in enumerate(names))
                     raise InvalidActionError(f"action[{key!r}] = {value!r}; valid: {valid}")
             else:
@@ -522,8 +561,10 @@ class SortingEnv(gym.Env):
             self._jaws = jaws
             return run(sk.pick(target, grasp_yaw, jaws))
 
-        name = COMMANDS[command]
-        if name == "place_in_bin":
+        name = self.commands[command]
+        if name == PICK:
+            acquire(position, yaw)  # holding already: nothing to do
+        elif name == "place_in_bin":
             if acquire(position, yaw):
                 run(sk.place_in_bin(CATEGORIES[bin_index]))
             run(sk.look(places.scene_view, places.scene_target, name="look_at_table"))
@@ -560,6 +601,41 @@ class SortingEnv(gym.Env):
         mujoco.mj_forward(self.model, self.data)
         self.skills.holding, self.skills.grasp_height, self.skills.grasp_yaw = skills
         self._blew_up = False
+
+    def _settle_gently(self, longest: float) -> None:
+        """Let the objects come to rest with their motion damped, before the ``settle_time``
+        every reset holds (a scene with :attr:`~ipbench.envs.layout.SceneConfig.gentle_settle`:
+        the pile, ``Sorting-v2`` only; ``longest``: that value, s).
+
+        Each object's velocities decay with time constant :data:`_GENTLE_TAU` (s) on top of
+        the physics until no object moves faster than :data:`_REST_SPEED` (m/s) and
+        :data:`_REST_SPIN` (rad/s); then the physics runs alone, until the objects stay at
+        rest for :data:`_RELEASE_CALM` checks in a row (the end), or one moves faster than
+        :data:`_WAKE_SPEED` (m/s: it topples, or slides off another), which damps them all
+        again; at most ``longest`` s of physics in all. The objects laid on a pile thus come
+        down onto the others as if put there by hand, instead of falling, bouncing and rolling
+        off the table (MuJoCo's contacts have no rolling resistance: a bowl or bottle set
+        rolling by a fall rolls on), and rest where the physics alone keeps them
+        (``tests/test_pile_scene.py``).
+        """
+        m, d = self.model, self.data
+        bodies = self.world.object_bodies
+        dofs = np.concatenate([m.jnt_dofadr[m.body_jntadr[b]] + np.arange(6) for b in bodies])
+        mass = np.repeat(m.body_mass[bodies][:, None], 3, axis=1)  # (n, 3), kg
+        # per dof: the mass for the translations, the principal moments (kg m^2) for rotations
+        damping = np.hstack([mass, m.body_inertia[bodies]]).ravel() / _GENTLE_TAU
+        undamped = m.dof_damping[dofs].copy()
+        damped, still, end = True, 0, d.time + longest
+        try:
+            while d.time < end and still < _RELEASE_CALM:
+                m.dof_damping[dofs] = undamped + damping if damped else undamped
+                self.robot.hold(_REST_CHECK)
+                v = np.abs(d.qvel[dofs]).reshape(-1, 6)
+                rest = v[:, :3].max() < _REST_SPEED and v[:, 3:].max() < _REST_SPIN
+                still = still + 1 if rest and not damped else 0
+                damped = (damped and not rest) or v[:, :3].max() > _WAKE_SPEED
+        finally:
+            m.dof_damping[dofs] = undamped
 
     def _place_arms_at_start(self) -> None:
         """Camera arm looking at the table, gripper arm parked clear of the camera's view."""

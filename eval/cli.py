@@ -148,12 +148,14 @@ def build_parser() -> argparse.ArgumentParser:
         "--policies",
         default="random,gp-ipm",
         help="comma-separated policies: random, gp-ipm (inspect in hand), gp-ipm-area "
-        "(inspect in the inspection area), svm-ipm (SVM confidences), oracle (true labels)",
+        "(inspect in the inspection area), svm-ipm (SVM confidences), oracle (true label of "
+        "the object held; v2), oracle-scene (true label of the segment aimed at)",
     )
     sorting.add_argument(
         "--seeds", default="0:30", help="episode seeds: A:B (A..B-1) or a comma-separated list"
     )
     sorting.add_argument("--workers", type=int, default=1, help="episodes run in parallel")
+    _add_env_option(sorting)
     sorting.add_argument(
         "--backend",
         default="process",
@@ -334,10 +336,12 @@ def main(argv: list[str] | None = None) -> int:
         print(f"report written to {(args.out / 'perception.md').resolve()}")
         return 0
     if args.command == "eval" and args.target == "sorting":
+        from ipbench.eval.perception import PerceptionEvalConfig
         from ipbench.eval.sorting import SortingEvalConfig, SortingEvalError, run_sorting_eval
 
         try:
             config = SortingEvalConfig(
+                perception=PerceptionEvalConfig.for_env(_env_id(args.env)),
                 scenes=_scenes(args.scenes),
                 policies=tuple(p.strip() for p in args.policies.split(",") if p.strip()),
                 seeds=_seeds(args.seeds),

@@ -240,11 +240,11 @@ def _stage_model() -> tuple[dict[str, str], dict[str, float]]:
 
 
 def _stage_layout() -> tuple[dict[str, str], dict[str, float]]:
-    from ipbench.envs.layout import SCENES
+    from ipbench.envs.layout import STANDARD_SCENES
 
     parts, rows, lying = {}, [], 0
     for catalog in ("v1", "v2"):
-        for scene in SCENES:
+        for scene in STANDARD_SCENES:
             poses, names = [], []
             for seed in LAYOUT_SEEDS:
                 for o in _layout(scene, seed, catalog).objects:

@@ -250,10 +250,10 @@ def segmentation_scores(
     import gymnasium as gym
 
     import ipbench.envs  # noqa: F401
-    from ipbench.envs.layout import SCENES
+    from ipbench.envs.layout import STANDARD_SCENES
 
     out = {}
-    for scene in SCENES:
+    for scene in STANDARD_SCENES:
         env = gym.make(
             config.dataset.env_id,
             scene=scene,

@@ -35,22 +35,28 @@ from tqdm import tqdm
 
 import ipbench.envs  # noqa: F401  (registers the environments)
 from ipbench.assets.objects import CATEGORIES
-from ipbench.envs.layout import SCENES
+from ipbench.envs.layout import SCENES, STANDARD_SCENES
 from ipbench.envs.sorting import workcell_places
 from ipbench.eval.files import ensure_writable
 from ipbench.eval.perception import PerceptionEvalConfig, model_key, trained_models
 from ipbench.eval.schedule import longest_first, pool_worker, single_thread_worker, task_cost
-from ipbench.eval.sorting_report import ThresholdSweep, load_episodes, write_report
+from ipbench.eval.sorting_report import (
+    ThresholdSweep,
+    load_episodes,
+    loss_decomposition,
+    write_report,
+)
 from ipbench.policies import (
     EVAL_CAMERAS,
     FUSIONS,
     INTERACTIVE,
     POLICIES,
+    READS_INFO,
     NothingToSort,
     PolicyModels,
     make_policy,
 )
-from ipbench.policies.oracle import true_category
+from ipbench.policies.oracle import true_category, true_object
 from ipbench.policies.threshold import ThresholdChoice, choose_threshold
 
 __all__ = [
@@ -195,7 +201,13 @@ def _validation_evidence(
     under_test = PolicyModels(
         gp=model, inspection_area=area, thresholds={}, segmentation=seg, features=feat
     )
-    tasks = [Task(scene, "random", seed) for scene in SCENES for seed in config.validation_seeds]
+    # the standard scenes only, whichever are evaluated: the thresholds stay those released
+    tasks = [
+        Task(scene, "random", seed)
+        for scene in SCENES
+        if scene in STANDARD_SCENES
+        for seed in config.validation_seeds
+    ]
     conf, correct = [], []
     records = _executor(config)(tasks, under_test, config)
     bar = tqdm(records, total=len(tasks), desc="validation episodes", disable=not progress)
@@ -332,7 +344,7 @@ def _run_episode(task: Task, models: PolicyModels, config: SortingEvalConfig) ->
         depth_noise=dataset.sensor,
         cameras=EVAL_CAMERAS,
     )
-    policy = make_policy(task.policy, models, config.n_views, config.fusion)
+    policy = make_policy(task.policy, models, config.n_views, config.fusion, env.unwrapped.commands)
     recorder = None
     if task.video:
         from ipbench.eval.overlay import SemanticVideoRecorder
@@ -343,18 +355,30 @@ def _run_episode(task: Task, models: PolicyModels, config: SortingEvalConfig) ->
     skills: Counter = Counter()
     grasp_failures = steps = undone = 0
     terminated = truncated = stopped = False
+    # for the loss decomposition: every object's status at reset and after each step, and
+    # per step the object its decision aimed at (per decision: mapped in the view it was
+    # made on; an inspection's later steps belong to the decision that picked)
+    statuses = [[o["status"] for o in info["objects"].values()]]
+    aimed: list[int | None] = []  # per decision, parallel to policy.decisions
+    step_aims: list[int | None] = []
+    step_bins: list[str | None] = []  # the bin each place step sent its object to
     while not (terminated or truncated):
         try:
-            action = policy.act(obs, info if task.policy == "oracle" else None)
+            action = policy.act(obs, info if task.policy in READS_INFO else None)
         except NothingToSort:
             stopped = True
             break
+        aimed += [true_object(d.pixels, info) for d in policy.decisions[len(aimed) :]]
         for decision in policy.decisions:
             if decision.true_category is None:
                 decision.true_category = true_category(decision.pixels, info)
         if recorder is not None:
             recorder.update(obs, policy.detections)
         obs, _, terminated, truncated, info = env.step(action)
+        step_aims.append(aimed[-1] if aimed else None)
+        placing = env.unwrapped.commands[int(action["command"])] == "place_in_bin"
+        step_bins.append(CATEGORIES[int(action["bin"])] if placing else None)
+        statuses.append([o["status"] for o in info["objects"].values()])
         steps += 1
         undone += bool(info.get("physics_undone"))
         for s in info["skills"]:
@@ -384,6 +408,9 @@ def _run_episode(task: Task, models: PolicyModels, config: SortingEvalConfig) ->
         "wrong_bin": in_bin - correct,
         "left": sum(o["status"] in ("on_table", "in_inspection_area", "in_hand") for o in objects),
         "dropped": sum(o["status"] == "dropped" for o in objects),
+        "losses": loss_decomposition(
+            [o["category"] for o in objects], statuses, step_aims, step_bins
+        ),
         "inspections": sum(d.kind == "inspect" for d in policy.decisions),
         "grasp_failures": int(grasp_failures),
         "physics_undone": int(undone),

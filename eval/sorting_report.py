@@ -2,11 +2,14 @@
 
 Input is one JSON record per sorting episode (``episodes.jsonl``, see :func:`load_episodes`)
 with at least ``scene, policy, seed, objects, correct, accuracy, per_category, inspections,
-grasp_failures, wall_time_s, sim_time_s, decisions``. Output, per scene, is a table laid out
-like the thesis' Table 5.1 (rows = policies, columns = categories as ``correct/total`` summed
-over seeds, then the total), with the spread over seeds as a percentile bootstrap interval of
-the per-seed mean accuracy and a paired sign-flip permutation test of ``gp-ipm`` against
-``random`` (episodes paired by seed: same scene, same objects).
+grasp_failures, wall_time_s, sim_time_s, decisions`` and, since the loss decomposition,
+``losses`` (see :func:`loss_decomposition`; older records without it are read, their cells
+get no decomposition). Output, per scene, is a table laid out like the thesis' Table 5.1
+(rows = policies, columns = categories as ``correct/total`` summed over seeds, then the
+total), with the spread over seeds as a percentile bootstrap interval of the per-seed mean
+accuracy and a paired sign-flip permutation test of ``gp-ipm`` against ``random`` (episodes
+paired by seed: same scene, same objects), and a table of where the objects not sorted right
+were lost (to labels or to handling).
 
 Statistics are pure numpy and deterministic for a given ``seed``; figures are drawn with
 matplotlib's object API on an Agg canvas (no pyplot, no display, no global backend change).
@@ -27,6 +30,7 @@ from matplotlib.figure import Figure
 from ipbench.assets.objects.catalog import CATEGORIES
 
 __all__ = [
+    "LOSSES",
     "THESIS_TABLE_5_1",
     "PairedTest",
     "ReportPaths",
@@ -34,12 +38,13 @@ __all__ = [
     "ThresholdSweep",
     "bootstrap_ci",
     "load_episodes",
+    "loss_decomposition",
     "paired_test",
     "summarize",
     "write_report",
 ]
 
-_POLICY_ORDER = ("oracle", "gp-ipm", "gp-ipm-area", "svm-ipm", "random")
+_POLICY_ORDER = ("oracle", "oracle-scene", "gp-ipm", "gp-ipm-area", "svm-ipm", "random")
 _SCENE_ORDER = ("uncluttered", "cluttered")
 _REQUIRED = (
     "scene",
@@ -55,6 +60,10 @@ _REQUIRED = (
     "sim_time_s",
     "decisions",
 )
+LOSSES: tuple[str, ...] = ("label", "wrong_object", "misplaced", "dropped", "left")
+"""Where an object not sorted into its own bin was lost (the keys of a record's ``losses``;
+see :func:`loss_decomposition`)."""
+_LEFT = ("on_table", "in_inspection_area", "in_hand")
 _EXACT_MAX_N = 16
 """Up to this many pairs the permutation test enumerates all ``2**n`` sign patterns."""
 _DPI = 110
@@ -219,6 +228,105 @@ def paired_test(
     return PairedTest(len(seeds), mean, low, high, p, method)
 
 
+# --------------------------------------------------------------------------- losses
+
+
+def loss_decomposition(
+    categories: Sequence[str],
+    statuses: Sequence[Sequence[str]],
+    aimed: Sequence[int | None],
+    bins: Sequence[str | None] | None = None,
+) -> dict[str, int]:
+    """Where the objects of one episode that did not end in their own bin were lost.
+
+    Parameters
+    ----------
+    categories : ``categories[k]``: object ``k``'s category.
+    statuses : the env's object statuses (``info["objects"][k]["status"]``: ``on_table``,
+        ``in_inspection_area``, ``in_hand``, ``in_bin:<category>``, ``dropped``) at reset
+        (``statuses[0]``) and after each step ``t`` (``statuses[t + 1]``).
+    aimed : ``aimed[t]``: the object step ``t``'s decision aimed at — the policy's last
+        decision when it chose the action, which for an inspection is the decision that
+        picked the object steps before —, i.e. the object owning most of the decision's
+        pixels in the ground-truth mask of the view it was made on (None: background).
+    bins : ``bins[t]``: the bin (category) step ``t`` sent its object to (``place_in_bin``),
+        None for other steps; None: every place went where it was sent.
+
+    Returns
+    -------
+    dict
+        ``{"label", "wrong_object", "dropped", "left"}`` counts (:data:`LOSSES`) adding up to
+        the objects not in their own bin at the end. An object in a wrong bin is attributed
+        to the step that last changed its status (the one that put it there; for an
+        inspection, the place that ended it, whose decision also made the pick): ``label``
+        when it is the object that step's decision aimed at and that bin is the one the step
+        sent it to — the grasp took the aimed object and the label sent it to a wrong bin —;
+        ``misplaced`` when it is the aimed object but it fell into another bin than it was
+        sent to (it tipped over the rim: handling); else ``wrong_object`` (a neighbour or another
+        object than the aimed one went into a wrong bin). ``dropped``: off the table at the
+        end; ``left``: on the table, in the inspection area or in hand at the end. An object
+        that a wrong-object grasp carried into its own bin is correct, not a loss.
+
+    Raises
+    ------
+    ValueError
+        On a ``statuses`` row of the wrong length, ``len(statuses) != len(aimed) + 1`` or an
+        unknown status.
+    """
+    n = len(categories)
+    if len(statuses) != len(aimed) + 1 or any(len(row) != n for row in statuses):
+        raise ValueError(
+            f"loss_decomposition needs one status row of {n} objects at reset and one after "
+            f"each of the {len(aimed)} steps, got {len(statuses)} rows of lengths "
+            f"{sorted({len(row) for row in statuses})}"
+        )
+    if bins is not None and len(bins) != len(aimed):
+        raise ValueError(f"loss_decomposition: {len(bins)} bins for {len(aimed)} steps")
+    settled_by: list[int | None] = [None] * n  # aimed object of the step that last moved k
+    sent_to: list[str | None] = [None] * n  # the bin that step sent its object to
+    for t, aim in enumerate(aimed):
+        for k in range(n):
+            if statuses[t + 1][k] != statuses[t][k]:
+                settled_by[k] = aim
+                sent_to[k] = None if bins is None else bins[t]
+    losses = dict.fromkeys(LOSSES, 0)
+    for k, (category, status) in enumerate(zip(categories, statuses[-1], strict=True)):
+        if status == f"in_bin:{category}":
+            continue
+        if status.startswith("in_bin:"):
+            if settled_by[k] != k:
+                losses["wrong_object"] += 1
+            elif sent_to[k] is None or status == f"in_bin:{sent_to[k]}":
+                losses["label"] += 1
+            else:
+                losses["misplaced"] += 1
+        elif status == "dropped":
+            losses["dropped"] += 1
+        elif status in _LEFT:
+            losses["left"] += 1
+        else:
+            raise ValueError(f"object {k} has an unknown status {status!r}")
+    return losses
+
+
+def _check_losses(record: Mapping, index: int) -> None:
+    """A record's ``losses`` (when it has them) hold the :data:`LOSSES` counts, adding up to
+    the objects not sorted right."""
+    losses = record["losses"]
+    where = (
+        f"episode {index} (scene={record.get('scene')!r}, policy={record.get('policy')!r}, "
+        f"seed={record.get('seed')!r})"
+    )
+    if not isinstance(losses, Mapping) or set(losses) != set(LOSSES):
+        raise ValueError(f"{where}: losses must have the keys {', '.join(LOSSES)}, got {losses!r}")
+    lost = int(record["objects"]) - int(record["correct"])
+    if sum(int(losses[k]) for k in LOSSES) != lost or min(int(v) for v in losses.values()) < 0:
+        raise ValueError(
+            f"{where}: losses {dict(losses)} do not add up to the {lost} objects not sorted "
+            "right (objects - correct)"
+        )
+
+
 # --------------------------------------------------------------------------- summary
 
 
@@ -237,6 +345,8 @@ def _check_episode(record: object, index: int) -> None:
             f"episode {index} (scene={record.get('scene')!r}, policy={record.get('policy')!r}, "
             f"seed={record.get('seed')!r}) lacks {', '.join(missing)}"
         )
+    if record.get("losses") is not None:
+        _check_losses(record, index)
 
 
 def _group(episodes: Sequence[Mapping]) -> dict[str, dict[str, list[Mapping]]]:
@@ -273,25 +383,38 @@ def _per_category(runs: Sequence[Mapping]) -> dict[str, dict[str, int]]:
     return {cat: counts[cat] for cat in _ordered(counts, CATEGORIES)}
 
 
+def _losses_mean(runs: Sequence[Mapping]) -> dict[str, float] | None:
+    """Mean per episode of each :data:`LOSSES` count; None when an episode has no
+    ``losses`` (recorded before the decomposition)."""
+    if any(ep.get("losses") is None for ep in runs):
+        return None
+    return {k: float(np.mean([ep["losses"][k] for ep in runs])) for k in LOSSES}
+
+
 def _policy_summary(runs: Sequence[Mapping]) -> dict:
     mean, low, high = bootstrap_ci([float(ep["accuracy"]) for ep in runs])
+    objects = sum(int(ep["objects"]) for ep in runs)
+    dropped = sum(int(ep.get("dropped", 0)) for ep in runs)
     return {
         "accuracy_mean": mean,
         "ci_low": low,
         "ci_high": high,
         "n": len(runs),
         "seeds": [int(ep["seed"]) for ep in runs],
-        "objects": sum(int(ep["objects"]) for ep in runs),
+        "objects": objects,
         "correct": sum(int(ep["correct"]) for ep in runs),
         "inspections_mean": float(np.mean([ep["inspections"] for ep in runs])),
         "grasp_failures_mean": float(np.mean([ep["grasp_failures"] for ep in runs])),
         "wall_time_s_mean": float(np.mean([ep["wall_time_s"] for ep in runs])),
         "sim_time_s_mean": float(np.mean([ep["sim_time_s"] for ep in runs])),
         "truncated": sum(bool(ep.get("truncated", False)) for ep in runs),
-        "dropped": sum(int(ep.get("dropped", 0)) for ep in runs),
+        "dropped": dropped,
+        "dropped_fraction": dropped / objects if objects else 0.0,
         "wrong_bin": sum(int(ep.get("wrong_bin", 0)) for ep in runs),
         "left": sum(int(ep.get("left", 0)) for ep in runs),
         "physics_undone": sum(int(ep.get("physics_undone", 0)) for ep in runs),
+        "losses_mean": _losses_mean(runs),
+        "losses_missing": sum(ep.get("losses") is None for ep in runs),
         "per_category": _per_category(runs),
     }
 
@@ -313,9 +436,13 @@ def summarize(episodes: Sequence[Mapping]) -> dict[str, dict[str, dict]]:
         ``objects`` and ``correct`` (summed over seeds), ``inspections_mean``,
         ``grasp_failures_mean`` (per episode), ``wall_time_s_mean``, ``sim_time_s_mean``
         (s per episode), ``truncated`` (episodes cut by the step limit), ``dropped``,
-        ``wrong_bin``, ``left`` (objects, summed over seeds), ``physics_undone`` (steps whose
-        contact blow-up the env rolled back) and ``per_category``
-        (``{category: {"correct", "total"}}`` summed over seeds, in bin order).
+        ``wrong_bin``, ``left`` (objects, summed over seeds), ``dropped_fraction`` (dropped
+        objects / objects of the cell), ``physics_undone`` (steps whose contact blow-up the
+        env rolled back), ``losses_mean`` (``{label, wrong_object, dropped, left}``: mean
+        objects per episode lost each way, see :func:`loss_decomposition`; None when some
+        record of the cell has no ``losses``), ``losses_missing`` (how many records have
+        none) and ``per_category`` (``{category: {"correct", "total"}}`` summed over seeds, in
+        bin order).
 
     Raises
     ------
@@ -526,6 +653,49 @@ def _scene_table(summary: Mapping[str, Mapping]) -> list[str]:
     return lines
 
 
+_LOSSES_HOW_TO_READ = (
+    "Where the objects not sorted into their own bin were lost, per policy: mean objects per "
+    "episode, and in brackets % of all the cell's objects; `label`: the grasp took the object "
+    "it aimed at and its label sent it to a wrong bin (perception), `wrong object`: another "
+    "object than the aimed one (a neighbour, part of a merged segment) ended in a wrong bin, "
+    "`misplaced`: the aimed object fell into another bin than it was sent to, "
+    "`dropped`: off the table, `left`: still on the table, in the inspection area or in hand "
+    "at the end (the last four are handling); the five add up to the objects not sorted "
+    "right."
+)
+
+
+def _losses_lines(summary: Mapping[str, Mapping]) -> list[str]:
+    """The "where the objects were lost" table of one scene and its explanation; cells whose
+    records predate the decomposition are named instead of shown."""
+    shown = {p: s for p, s in summary.items() if s.get("losses_mean") is not None}
+    missing = [p for p in summary if p not in shown]
+    lines = ["### Where the objects were lost", ""]
+    if shown:
+        head = ["policy", *map(_label, LOSSES)]
+        lines += ["| " + " | ".join(head) + " |", "|---" * len(head) + "|"]
+        for policy, s in shown.items():
+            cells = [policy]
+            for k in LOSSES:
+                mean = s["losses_mean"][k]
+                share = mean * s["n"] / s["objects"] if s["objects"] else 0.0
+                cells.append(f"{mean:.1f} ({_pct(share)} %)")
+            lines.append("| " + " | ".join(cells) + " |")
+        lines += ["", _LOSSES_HOW_TO_READ, ""]
+    if missing:
+        names = ", ".join(
+            f"`{p}` ({summary[p].get('losses_missing', summary[p]['n'])} of {summary[p]['n']} "
+            "episodes without one)"
+            for p in missing
+        )
+        lines += [
+            f"No loss decomposition for {names}: those records predate it; run them again "
+            "into a new --out to get it.",
+            "",
+        ]
+    return lines
+
+
 def _thesis_line(scene: str) -> str:
     refs = THESIS_TABLE_5_1.get(scene)
     if not refs:
@@ -639,6 +809,7 @@ def write_report(
             lines += [f"{truncated} episode(s) stopped at the step limit (truncated).", ""]
         if "gp-ipm" in by_policy and "random" in by_policy:
             lines += [_paired_line(scene, runs[scene], by_policy), ""]
+        lines += _losses_lines(by_policy)
     lines += ["## Plots", "", "![accuracy by policy](accuracy_by_policy.png)", ""]
     points = _inspect_decisions(episodes)
     if points:

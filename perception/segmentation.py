@@ -35,6 +35,8 @@ __all__ = [
     "SegmentationConfig",
     "crop_box",
     "grasp_yaw",
+    "make_segment",
+    "plane_basis",
     "segment_in_hand",
     "segment_region",
     "segment_scene",
@@ -116,11 +118,17 @@ class Segment:
 
 @dataclass(frozen=True, eq=False)
 class SceneSegmentation:
-    """Segments (largest first) and the table plane ``normal . x + offset = 0`` (normal up)."""
+    """Segments (largest first) and the table plane ``normal . x + offset = 0`` (normal up).
+
+    ``oversized``: clusters that passed the point count but not ``max_extent`` (largest
+    first): the table's edge, the robot, or a pile of touching objects, for a caller that can
+    split them (:mod:`~ipbench.perception.split`); not part of ``segments``.
+    """
 
     segments: tuple[Segment, ...]
     normal: np.ndarray  # (3,) unit
     offset: float  # m
+    oversized: tuple[Segment, ...] = ()
 
     @property
     def plane(self) -> tuple[np.ndarray, float]:
@@ -185,15 +193,18 @@ def _fit_plane(points: np.ndarray, config: SegmentationConfig) -> tuple[np.ndarr
     )
 
 
-def _plane_basis(normal: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def plane_basis(normal: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Two unit vectors (3,) spanning the plane of unit ``normal`` (3,), with ``normal`` a
+    right-handed frame."""
     e1 = np.cross(normal, [0.0, 1.0, 0.0] if abs(normal[0]) > 0.9 else [1.0, 0.0, 0.0])
     e1 /= np.linalg.norm(e1)
     return e1, np.cross(normal, e1)
 
 
-def _make_segment(points, pixels, up, offset: float | None) -> Segment:
-    """Segment with its box about ``up``; heights from the plane (offset) or the lowest point."""
-    e1, e2 = _plane_basis(up)
+def make_segment(points, pixels, up, offset: float | None) -> Segment:
+    """Segment of ``points`` (N, 3) from ``pixels`` (N,), its box about ``up`` (3,); heights
+    from the plane ``up . x + offset = 0`` (``offset`` given) or from the lowest point."""
+    e1, e2 = plane_basis(up)
     flat = np.column_stack([points @ e1, points @ e2])
     (cx, cy), _, _ = rect = cv2.minAreaRect(flat.astype(np.float32))
     corners = cv2.boxPoints(rect).astype(np.float64)
@@ -219,8 +230,11 @@ def _make_segment(points, pixels, up, offset: float | None) -> Segment:
     )
 
 
-def _cluster(cloud: Cloud, config: SegmentationConfig, up, offset) -> list[Segment]:
-    """Euclidean clusters of ``cloud`` passing the size rules, largest first."""
+def _cluster(
+    cloud: Cloud, config: SegmentationConfig, up, offset, oversized: list | None = None
+) -> list[Segment]:
+    """Euclidean clusters of ``cloud`` passing the size rules, largest first (those larger
+    than ``max_extent`` are appended to ``oversized`` when given)."""
     if len(cloud) == 0:
         return []
     centres, voxel_of = voxel_grid(cloud.points, config.voxel_size)
@@ -233,9 +247,13 @@ def _cluster(cloud: Cloud, config: SegmentationConfig, up, offset) -> list[Segme
     for members in np.split(order, starts[1:]):
         if len(members) < config.min_points:
             continue
-        seg = _make_segment(cloud.points[members], cloud.pixels[members], up, offset)
+        seg = make_segment(cloud.points[members], cloud.pixels[members], up, offset)
         if config.min_extent <= max(seg.box_extent) <= config.max_extent:
             segments.append(seg)
+        elif oversized is not None and max(seg.box_extent) > config.max_extent:
+            oversized.append(seg)
+    if oversized is not None:
+        oversized.sort(key=lambda s: -len(s.points))
     return sorted(segments, key=lambda s: -len(s.points))
 
 
@@ -245,7 +263,7 @@ def _segment(cloud: Cloud, config: SegmentationConfig, plane) -> SceneSegmentati
     normal, offset = np.asarray(plane[0], dtype=np.float64), float(plane[1])
     height = cloud.points @ normal + offset
     near = np.abs(height) <= config.plane_distance
-    e1, e2 = _plane_basis(normal)
+    e1, e2 = plane_basis(normal)
     keep = np.flatnonzero((height > config.min_height) & (height <= config.prism_height))
     if near.sum() >= 3 and len(keep):
         hull_pts = cloud.points[near][:: max(1, int(near.sum()) // 20000)]
@@ -258,8 +276,9 @@ def _segment(cloud: Cloud, config: SegmentationConfig, plane) -> SceneSegmentati
         keep = keep[inside]
     else:
         keep = keep[:0]
-    segments = _cluster(cloud.subset(keep), config, normal, offset)
-    return SceneSegmentation(tuple(segments), normal, offset)
+    oversized: list[Segment] = []
+    segments = _cluster(cloud.subset(keep), config, normal, offset, oversized)
+    return SceneSegmentation(tuple(segments), normal, offset, tuple(oversized))
 
 
 def segment_scene(

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+from ipbench.envs.sorting import COMMANDS
 from ipbench.perception.features import DEFAULT_FEATURES, FeatureConfig
 from ipbench.perception.model import PerceptionModel
 from ipbench.perception.segmentation import DEFAULT_SEGMENTATION, SegmentationConfig
@@ -29,11 +30,21 @@ __all__ = [
     "Policy",
     "PolicyError",
     "PolicyModels",
+    "READS_INFO",
     "make_policy",
 ]
 
-POLICIES: tuple[str, ...] = ("random", "gp-ipm", "gp-ipm-area", "svm-ipm", "oracle")
+POLICIES: tuple[str, ...] = (
+    "random",
+    "gp-ipm",
+    "gp-ipm-area",
+    "svm-ipm",
+    "oracle",
+    "oracle-scene",
+)
 """Policy names of the benchmark."""
+READS_INFO: frozenset[str] = frozenset({"oracle", "oracle-scene"})
+"""The policies that read ``info`` (ground truth): ``act(observation, info)``."""
 EVAL_CAMERAS: tuple[str, ...] = ("wrist",)
 """The cameras the policies of :data:`POLICIES` read (``observation["wrist_*"]`` and ``qpos``;
 the oracle also ``info["wrist_mask"]``; none reads the head's stereo pair): what the
@@ -70,9 +81,15 @@ class PolicyModels:
 
 
 def make_policy(
-    name: str, models: PolicyModels, n_views: int = 3, fusion: str = "majority"
+    name: str,
+    models: PolicyModels,
+    n_views: int = 3,
+    fusion: str = "majority",
+    commands: tuple[str, ...] = COMMANDS,
 ) -> Policy:
-    """The policy ``name`` (one of :data:`POLICIES`)."""
+    """The policy ``name`` (one of :data:`POLICIES`) for an env whose ``action["command"]``
+    values mean ``commands`` (``env.unwrapped.commands``; the oracle picks first where it
+    can, see :mod:`ipbench.policies.oracle`)."""
 
     def perceiver(model: PerceptionModel | None, what: str) -> Perceiver:
         if model is None:
@@ -98,8 +115,8 @@ def make_policy(
 
     if name == "random":
         return RandomSorter(perceiver(models.gp, "gp"), name)
-    if name == "oracle":
-        return OracleSorter(perceiver(models.gp, "gp"), name)
+    if name in ("oracle", "oracle-scene"):
+        return OracleSorter(perceiver(models.gp, "gp"), name, name == "oracle", commands)
     if name in INTERACTIVE:
         return interactive(*INTERACTIVE[name])
     raise PolicyError(f"unknown policy {name!r}; valid: {', '.join(POLICIES)}")

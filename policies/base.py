@@ -57,7 +57,9 @@ class Decision:
     ``first_*``: the scene view that selected it; ``label``/``confidence``: what decided its
     bin (after fusing ``views`` inspection views, or the first view when ``views == 0``);
     ``pixels``: the selecting segment's flat pixel indices in that observation (the evaluation
-    maps them to the ground truth); ``kind``: ``"place"`` or ``"inspect"``.
+    maps them to the ground truth); ``kind``: ``"place"`` or ``"inspect"``; ``free_grasp``: the
+    depth image showed its grasp to be free (False: taken although blocked, nothing free was
+    left).
     """
 
     step: int
@@ -70,6 +72,7 @@ class Decision:
     views: int = 0
     view_labels: tuple[str, ...] = ()
     true_category: str | None = None
+    free_grasp: bool = True
 
     def record(self) -> dict:
         """JSON-ready fields (no pixels)."""
@@ -83,6 +86,7 @@ class Decision:
             "views": self.views,
             "view_labels": list(self.view_labels),
             "true_category": self.true_category,
+            "free_grasp": self.free_grasp,
         }
 
 
@@ -99,7 +103,8 @@ def place_action(target: GraspTarget, label: str, command: int = 0) -> dict:
 
 
 class SceneSorter:
-    """Shared scene handling: perceive, remember failed grasps, aim grasps.
+    """Shared scene handling: perceive, remember failed grasps, aim grasps (checked against
+    the other segments of the view, :meth:`target`; blocked ones wait, :meth:`access`).
 
     After an action that should have removed the object at ``position``, a segment still
     there in the next scene view counts as a failed grasp; the next attempt there turns the
@@ -117,6 +122,7 @@ class SceneSorter:
         self.decisions: list[Decision] = []
         self._steps = 0
         self._last_target: GraspTarget | None = None
+        self._targets: dict[int, GraspTarget] = {}
 
     def reset(self, seed: int | None = None) -> None:
         self.failures.clear()
@@ -124,10 +130,14 @@ class SceneSorter:
         self.decisions = []
         self._steps = 0
         self._last_target = None
+        self._targets = {}
 
-    def perceive_scene(self, observation: dict) -> list[Detection]:
-        """Segments on the table now; records whether the last grasp failed."""
-        self.detections = self.perceiver.scene(observation)
+    def perceive_scene(self, observation: dict, classify: bool = True) -> list[Detection]:
+        """Segments on the table now (``classify``: with class probabilities); records whether
+        the last grasp failed."""
+        scene = self.perceiver.scene
+        self.detections = scene(observation) if classify else scene(observation, classify=False)
+        self._targets = {}
         if self._last_target is not None:
             p = self._last_target.position
             if any(
@@ -153,10 +163,22 @@ class SceneSorter:
         return keep
 
     def target(self, detection: Detection) -> GraspTarget:
-        """Where to grasp ``detection`` (turned after failures there)."""
-        others = [d.segment.box_center for d in self.detections if d is not detection]
-        turn = self.failures.count(detection.segment.box_center)
-        return grasp_target(detection.segment, others, turn, detection.viewpoint)
+        """Where to grasp ``detection`` (turned after failures there), checked against every
+        other segment of the current view (:func:`~ipbench.policies.grasping.grasp_target`);
+        computed once per view."""
+        key = id(detection.segment)
+        if key not in self._targets:
+            others = [d.points for d in self.detections if d.segment is not detection.segment]
+            turn = self.failures.count(detection.segment.box_center)
+            points = np.concatenate(others) if others else np.zeros((0, 3))
+            self._targets[key] = grasp_target(detection.segment, points, turn, detection.viewpoint)
+        return self._targets[key]
+
+    def access(self, detection: Detection) -> tuple[bool, float]:
+        """Sort key of accessibility: ``(no free grasp, -clearance)`` — objects whose grasp the
+        depth image shows to be blocked wait, the most accessible goes first."""
+        target = self.target(detection)
+        return (not target.free, -round(target.clearance, 3))
 
     def patience(self, detection: Detection) -> int:
         """Sort key: 0 until an object failed twice, then 1 (it waits), and so on."""
@@ -171,6 +193,7 @@ class SceneSorter:
             detection.segment.pixels,
             label=detection.label,
             confidence=detection.confidence,
+            free_grasp=self.target(detection).free,
         )
         self.decisions.append(decision)
         return decision

@@ -4,10 +4,12 @@ The camera sees only an object's front, so the box of its points is short along 
 sight; the footprint is completed by assuming the unseen back is as deep as the object is wide
 (:func:`completed_footprint`: a cylinder's or a box's centre moves back by half the missing
 depth). The grasp point is that footprint's centre, lowered for short objects to just under the top
-(a bowl is held by its rim, as in :func:`ipbench.policies.scripted.grasp_point`); the jaws
-close across the box's narrower horizontal side, or — for a near-square footprint — along
-whichever of the two sides keeps the fingers farthest from the neighbouring segments. After a
-failed grasp the next attempt at the same place turns the jaws by 90°.
+(a bowl is held by its rim, as in :func:`ipbench.policies.scripted.grasp_point`). The jaws
+close across the box's narrower horizontal side unless the depth image shows that grasp to be
+blocked (:mod:`ipbench.policies.free_grasp`: a finger would land on something, or another
+object is between the pads), in which case a wider opening, the other side or a diagonal is
+taken (:func:`grasp_target`). After a failed grasp the next attempt at the same place turns
+the first choice by 90°.
 """
 
 from __future__ import annotations
@@ -18,12 +20,17 @@ import numpy as np
 
 from ipbench.envs.sorting import MAX_JAW_OPENING
 from ipbench.perception.segmentation import Segment, grasp_yaw
-from ipbench.policies.scripted import SHORT, TOP_MARGIN, clearest_yaw, opening_across
+from ipbench.policies.free_grasp import DEFAULT_FREE_GRASP, FreeGraspConfig, check_grasp
+from ipbench.policies.scripted import SHORT, TOP_MARGIN, opening_across
 
 __all__ = ["FailureMemory", "GraspTarget", "completed_footprint", "grasp_target", "jaw_opening"]
 
 SQUARE = 1.2
-"""Footprints whose sides differ by less than this ratio are near-square."""
+"""Footprints whose sides differ by less than this ratio are near-square (round objects)."""
+BOX_TURNS = (0.0, np.pi / 2, np.pi / 4, -np.pi / 4)
+"""Jaw turns tried from the first choice (rad), in order of preference."""
+ROUND_TURNS = (0.0, np.pi / 2, np.pi / 6, -np.pi / 6, np.pi / 3, -np.pi / 3)
+"""The same for near-square footprints, whose width is about the same across any turn."""
 MAX_COMPLETION = 0.05
 """Most the footprint is deepened along the line of sight (m)."""
 
@@ -31,11 +38,15 @@ MAX_COMPLETION = 0.05
 @dataclass(frozen=True)
 class GraspTarget:
     """``position`` (3,) world m, jaw ``yaw`` (rad, in [-pi, pi)) and jaw ``opening`` (m: the
-    object's completed width across the jaws plus ``OPENING_MARGIN``) for the env's action."""
+    object's completed width across the jaws plus ``OPENING_MARGIN``) for the env's action;
+    ``free``: the depth image shows the jaws' volumes clear, ``clearance`` (m) to spare
+    (:mod:`ipbench.policies.free_grasp`)."""
 
     position: np.ndarray
     yaw: float
     opening: float = MAX_JAW_OPENING
+    free: bool = True
+    clearance: float = float("inf")
 
 
 def _wrap(a: float) -> float:
@@ -63,13 +74,21 @@ def completed_footprint(segment: Segment, viewpoint: np.ndarray) -> tuple[np.nda
 
 def grasp_target(
     segment: Segment,
-    neighbours: list[np.ndarray],
+    others: np.ndarray | list = (),
     turn: int = 0,
     viewpoint: np.ndarray | None = None,
+    config: FreeGraspConfig = DEFAULT_FREE_GRASP,
 ) -> GraspTarget:
-    """The grasp of ``segment`` seen from ``viewpoint`` (3,) (None: no completion);
-    ``neighbours`` are other segments' centres (3,), ``turn`` the number of failed attempts
-    here (each turns the jaws by a further 90°)."""
+    """The grasp of ``segment`` seen from ``viewpoint`` (3,) (None: no completion), checked
+    against ``others``, the (M, 3) world points of every other segment (m); ``turn`` is the
+    number of failed attempts here (each turns the first choice by a further 90°).
+
+    Candidates, in order of preference: the jaws across the footprint's narrower side (turned
+    by ``turn`` x 90°), opened 2 cm wider, across the other side, then turned 45° either way
+    (a near-square footprint, e.g. a round object: every 30°, :data:`ROUND_TURNS`).
+    The first one that is free with ``max_clearance`` to spare is taken; else the free one
+    with the most clearance; else (``free=False``) the one with the fewest points in the way.
+    """
     top = float(segment.top)
     height = float(segment.height)
     z = top - TOP_MARGIN if height < SHORT else top - 0.5 * height
@@ -81,11 +100,41 @@ def grasp_target(
     yaw = grasp_yaw(segment)  # across the box's y side
     if ext[0] < ext[1]:
         yaw += np.pi / 2
+    first = yaw + turn * np.pi / 2
+    candidates = []
     lo, hi = np.sort(ext)
-    if hi < SQUARE * max(lo, 1e-6):
-        yaw = clearest_yaw(position, [yaw, yaw + np.pi / 2], neighbours)
-    yaw = _wrap(yaw + turn * np.pi / 2)
-    return GraspTarget(position, yaw, jaw_opening(segment, ext, yaw))
+    turns = ROUND_TURNS if hi < SQUARE * max(lo, 1e-6) else BOX_TURNS
+    for k, dyaw in enumerate(turns):
+        opening = jaw_opening(segment, ext, first + dyaw)
+        candidates.append((_wrap(first + dyaw), opening))
+        if k == 0:
+            candidates.append((_wrap(first), min(opening + 0.02, MAX_JAW_OPENING)))
+    table_z = top - height
+    target_points = np.asarray(segment.points, dtype=float)
+    other_points = np.asarray(others, dtype=float).reshape(-1, 3)
+    # only what the jaws can reach matters: a window around the grasp, above the table
+    window = 0.5 * MAX_JAW_OPENING + 0.1
+    other_points = other_points[
+        (np.abs(other_points[:, :2] - position[:2]).max(axis=1) <= window)
+        & (other_points[:, 2] > table_z)
+    ]
+    checks = [
+        check_grasp(position, y, o, target_points, other_points, table_z, config)
+        for y, o in candidates
+    ]
+    roomy = (k for k, c in enumerate(checks) if c.free and c.clearance >= config.max_clearance)
+    best = next(roomy, None)
+    if best is None:
+        free = [k for k, c in enumerate(checks) if c.free]
+        if free:
+            best = max(free, key=lambda k: checks[k].clearance)
+        else:
+            best = min(
+                range(len(checks)),
+                key=lambda k: (checks[k].landing_hits + checks[k].closing_hits, k),
+            )
+    yaw, opening = candidates[best]
+    return GraspTarget(position, yaw, opening, checks[best].free, checks[best].clearance)
 
 
 def jaw_opening(segment: Segment, extent: np.ndarray, yaw: float) -> float:

@@ -1,6 +1,8 @@
 """GP-IPM, the thesis' interactive perception and manipulation loop (ch. 5 Alg. 1, ch. 6).
 
-Each step: perceive the table; take the most confident object; if its confidence reaches the
+Each step: perceive the table; take the most confident object (among those whose grasp the
+depth image shows to be free, if any: the others wait, see
+:meth:`~ipbench.policies.base.SceneSorter.access`); if its confidence reaches the
 threshold, put it into the bin of its predicted class; otherwise *inspect* it — in the hand
 (presented to the wrist camera) or in the inspection area — turning it by ``turn_deg`` between
 views until ``n_views`` views are classified, fuse them (:mod:`ipbench.policies.fusion`) and
@@ -94,7 +96,10 @@ class InteractiveSorter(SceneSorter):
         if self._inspection is not None:
             return self._continue_inspection(observation)
         detections = self.candidates(self.perceive_scene(observation))
-        best = min(detections, key=lambda d: (self.patience(d), -d.confidence))
+        best = min(
+            detections,
+            key=lambda d: (self.patience(d), self.access(d)[0], -d.confidence, self.access(d)[1]),
+        )
         decision = self.begin(best)
         target = self.target(best)
         self.grasp(target)

@@ -25,6 +25,8 @@ from ipbench.perception.segmentation import (
     segment_region,
     segment_scene,
 )
+from ipbench.perception.split import DEFAULT_SPLIT, ObjectEnvelope, SplitConfig, split_merged
+from ipbench.policies.envelopes import object_envelopes
 from ipbench.policies.kinematics import HandKinematics
 
 __all__ = ["AREA_HALF", "Detection", "Perceiver"]
@@ -75,6 +77,10 @@ class Perceiver:
     segmentation, features : the settings the model's training views were made with.
     hand_model : the model for an object held up to the camera (trained on in-hand views);
         None classifies those with ``model``.
+    split : how a table segment too large for one object is cut into objects
+        (:mod:`ipbench.perception.split`); None keeps every segment whole.
+    envelopes : the object sizes that decide "too large" (default:
+        :func:`~ipbench.policies.envelopes.object_envelopes`).
     """
 
     def __init__(
@@ -84,6 +90,8 @@ class Perceiver:
         segmentation: SegmentationConfig = DEFAULT_SEGMENTATION,
         features: FeatureConfig = DEFAULT_FEATURES,
         hand_model: PerceptionModel | None = None,
+        split: SplitConfig | None = DEFAULT_SPLIT,
+        envelopes: tuple[ObjectEnvelope, ...] | None = None,
     ) -> None:
         if hand_model is not None and hand_model.classes != model.classes:
             raise PerceptionError(
@@ -96,6 +104,8 @@ class Perceiver:
         self.features = features
         self.inspection_area = np.asarray(inspection_area, dtype=float)
         self.kinematics = HandKinematics()
+        self.split = split
+        self.envelopes = envelopes if envelopes is not None else object_envelopes()
 
     @property
     def classes(self) -> tuple[str, ...]:
@@ -120,13 +130,26 @@ class Perceiver:
             for s, p in zip(segments, probs, strict=True)
         ]
 
-    def scene(self, observation: dict) -> list[Detection]:
-        """Every object hypothesis on the table (empty when no table plane is found)."""
+    def scene(self, observation: dict, classify: bool = True) -> list[Detection]:
+        """Every object hypothesis on the table (empty when no table plane is found), merged
+        segments split (:attr:`split`); ``classify=False`` skips the features and the
+        classifier (uniform probabilities: for a policy that labels segments otherwise)."""
         try:
-            segments = list(segment_scene(self._cloud(observation), self.segmentation).segments)
+            found = segment_scene(self._cloud(observation), self.segmentation)
         except PerceptionError:
             return []
-        return self._classify(segments, observation["wrist_pose"][:3, 3], inspected=False)
+        segments = list(found.segments)
+        if self.split is not None:  # a pile too large to be one segment is split as well
+            limit = self.segmentation.max_extent
+            whole = split_merged(segments, found.plane, self.envelopes, self.split)
+            piles = split_merged(found.oversized, found.plane, self.envelopes, self.split)
+            parts = list(whole) + [p for p in piles if max(p.box_extent) <= limit]
+            segments = sorted(parts, key=lambda s: -len(s.points))
+        eye = observation["wrist_pose"][:3, 3]
+        if not classify:
+            uniform = np.full(len(self.classes), 1.0 / len(self.classes))
+            return [Detection(s, uniform, self.classes, eye) for s in segments]
+        return self._classify(segments, eye, inspected=False)
 
     def in_area(self, observation: dict) -> Detection | None:
         """The object in the inspection area (None when nothing is there)."""

@@ -1,7 +1,9 @@
 """Random sorting, the thesis' baseline (Table 5.1).
 
 One-shot perception of the scene, then the objects are removed in random order, each into the
-bin of its predicted class; confidence is not used. When every object of that view has had
+bin of its predicted class; confidence is not used. An object whose grasp the depth image
+shows to be blocked waits for the free ones of its round (the grasp planning every policy
+shares, :mod:`ipbench.policies.free_grasp`). When every object of that view has had
 its turn and some remain (failed grasps, merged segments), the scene is perceived again — a new
 one-shot view — and the next round starts.
 """
@@ -37,7 +39,10 @@ class RandomSorter(SceneSorter):
             self._queue = [detections[i] for i in self._rng.permutation(len(detections))]
         else:
             self._last_target = None  # one-shot: no new view to check the last grasp with
-        chosen = self._queue.pop(0)
+        # an object whose grasp the depth image shows blocked waits for the free ones
+        # (its view's grasps are checked against that view's segments)
+        free = [k for k, d in enumerate(self._queue) if self.target(d).free]
+        chosen = self._queue.pop(free[0] if free else 0)
         self.begin(chosen)
         target = self.target(chosen)
         self.grasp(target)

@@ -7,7 +7,14 @@ import pytest
 
 import ipbench.envs.layout as layout_module
 from ipbench.assets.objects import CATEGORIES
-from ipbench.envs.layout import SCENES, LayoutError, _footprint, _overlaps, sample_layout
+from ipbench.envs.layout import (
+    SCENES,
+    STANDARD_SCENES,
+    LayoutError,
+    _footprint,
+    _overlaps,
+    sample_layout,
+)
 from ipbench.envs.robot import ik_model
 from ipbench.envs.world import Places
 
@@ -27,7 +34,7 @@ def test_exports():
         assert hasattr(layout_module, name)
 
 
-@pytest.mark.parametrize("scene", sorted(SCENES))
+@pytest.mark.parametrize("scene", sorted(STANDARD_SCENES))  # (the pile: test_pile_scene.py)
 def test_composition_and_determinism(places, scene):
     a, b = _layout(places, scene, 7), _layout(places, scene, 7)
     assert a == b
@@ -38,7 +45,7 @@ def test_composition_and_determinism(places, scene):
     assert [o.position for o in a.objects] != [o.position for o in c.objects]
 
 
-@pytest.mark.parametrize("scene", sorted(SCENES))
+@pytest.mark.parametrize("scene", sorted(STANDARD_SCENES))
 def test_objects_inside_the_area_without_overlap(places, scene):
     config = SCENES[scene]
     area = places.spawn_area
@@ -61,7 +68,7 @@ def test_objects_inside_the_area_without_overlap(places, scene):
 
 
 def test_known_and_unknown_instances_both_appear(places):
-    for scene in SCENES:
+    for scene in STANDARD_SCENES:
         for seed in range(10):
             known = {o.instance.known for o in _layout(places, scene, seed).objects}
             assert known == {True, False}

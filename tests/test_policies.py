@@ -251,7 +251,11 @@ def test_in_hand_views_are_classified_by_the_in_hand_model(monkeypatch) -> None:
     monkeypatch.setattr(perceiver_module, "depth_to_points", lambda *a: None)
     monkeypatch.setattr(perceiver_module, "segment_in_hand", lambda *a, **k: seg)
     monkeypatch.setattr(
-        perceiver_module, "segment_scene", lambda *a, **k: SimpleNamespace(segments=(seg,))
+        perceiver_module,
+        "segment_scene",
+        lambda *a, **k: SimpleNamespace(
+            segments=(seg,), plane=(np.array([0.0, 0, 1]), -0.7), oversized=()
+        ),
     )
     obs = {"wrist_depth": None, "wrist_K": None, "wrist_pose": np.eye(4)}
     obs["qpos"] = np.zeros(len(ROBOT_JOINTS))

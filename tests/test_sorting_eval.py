@@ -14,7 +14,7 @@ from small_models import small_models
 
 import ipbench.envs  # noqa: F401
 import ipbench.eval.sorting as sorting
-from ipbench.envs.layout import SCENES
+from ipbench.envs.layout import SCENES, STANDARD_SCENES
 from ipbench.eval.sorting import SortingEvalConfig, SortingEvalError, Task, run_sorting_eval
 from ipbench.policies import POLICIES, PolicyModels
 from ipbench.policies.threshold import choose_threshold
@@ -41,8 +41,8 @@ def prepared(models, monkeypatch):
 
 RECORD_KEYS = {
     "scene", "policy", "seed", "objects", "correct", "accuracy", "per_category", "wrong_bin",
-    "left", "dropped", "inspections", "grasp_failures", "physics_undone", "steps", "skills",
-    "sim_time_s",
+    "left", "dropped", "losses", "inspections", "grasp_failures", "physics_undone", "steps",
+    "skills", "sim_time_s",
     "wall_time_s", "truncated", "stopped", "threshold", "decisions", "video",
 }  # fmt: skip
 
@@ -243,5 +243,6 @@ def test_validation_evidence_is_in_task_order_whatever_order_workers_finish(monk
 
     monkeypatch.setattr(sorting, "_executor", executor)
     conf, correct = sorting._validation_evidence(None, config)
-    assert conf.tolist() == sorted(conf.tolist()) and len(conf) == 3 * len(sorting.SCENES)
+    # the standard scenes' validation episodes (not the pile's)
+    assert conf.tolist() == sorted(conf.tolist()) and len(conf) == 3 * len(STANDARD_SCENES)
     assert correct.all()
