@@ -37,8 +37,8 @@ def _envelope(size, center, quat) -> ObjectEnvelope:
 @cache
 def object_envelopes() -> tuple[ObjectEnvelope, ...]:
     """The envelope of every instance of every catalogue in each of its resting poses, each
-    box once (bounding boxes: a yaw is the worst case of the axis-aligned footprint only for
-    a square one, so the footprint of a turned object is its box's own sides)."""
+    box once: the instance's bounding box turned into the pose (a yaw about the vertical does
+    not change the footprint's own sides, which are what a segment's box is compared with)."""
     boxes = {
         _envelope(inst.size, inst.center, pose.quat)
         for catalog in CATALOGS
