@@ -23,9 +23,7 @@ from __future__ import annotations
 
 import hashlib
 import json
-import multiprocessing
 import zipfile
-from concurrent.futures import ProcessPoolExecutor
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
@@ -56,6 +54,7 @@ from ipbench.envs.sorting import WRIST_CAMERA, WRIST_SIZE
 from ipbench.envs.world import Places, build_world
 from ipbench.eval.hand_views import render_in_hand_views
 from ipbench.eval.schedule import pool_worker
+from ipbench.eval.workers import run_tasks
 from ipbench.perception.cloud import PerceptionError, depth_to_points
 from ipbench.perception.features import FeatureConfig, fpfh
 from ipbench.perception.segmentation import SegmentationConfig, segment_scene
@@ -298,30 +297,6 @@ def render_cluttered_segments(config: DatasetConfig, progress: bool = True) -> V
     return ViewSet.from_views(descriptors, labels, names, known, "cluttered")
 
 
-class _Serial:
-    """A stand-in for a process pool that runs in this process."""
-
-    def __enter__(self) -> _Serial:
-        return self
-
-    def __exit__(self, *exc) -> None:
-        pass
-
-    @staticmethod
-    def map(fn, *iterables):
-        return map(fn, *iterables)
-
-
-def _pool(workers: int):
-    if workers <= 1:
-        return _Serial()
-    # spawn: each worker opens its own headless GL context (no GL state crosses a fork), with
-    # one thread per library: `workers` processes on as many cores (ipbench.eval.schedule)
-    return ProcessPoolExecutor(
-        workers, mp_context=multiprocessing.get_context("spawn"), initializer=pool_worker
-    )
-
-
 _RENDERERS = {"isolated": render_instance_views, "in_hand": render_in_hand_views}
 """Per-instance view sources and what renders them."""
 
@@ -396,17 +371,21 @@ def load_or_build(
         unit="part",
         disable=not progress,
     )
-    with _pool(workers) as pool:
-        done = pool.map(
-            _render_part, [k for k, _ in todo], [i for _, i in todo], [config] * len(todo)
-        )
-        for (kind, inst), views in zip(todo, done, strict=True):
-            final = _part_path(parts_dir, kind, inst)
-            tmp = final.with_name(final.name.replace(".npz", ".tmp.npz"))
-            views.save(tmp)
-            tmp.replace(final)  # finished parts survive interruptions
-            parts[kind, inst.name] = views
-            bar.update()
+    renders = run_tasks(
+        _render_part,
+        [(kind, inst, config) for kind, inst in todo],
+        workers,
+        pool_worker if workers > 1 else None,
+        what="dataset part",
+    )
+    for k, views in renders:
+        kind, inst = todo[k]
+        final = _part_path(parts_dir, kind, inst)
+        tmp = final.with_name(final.name.replace(".npz", ".tmp.npz"))
+        views.save(tmp)
+        tmp.replace(final)  # finished parts survive interruptions (and worker crashes)
+        parts[kind, inst.name] = views
+        bar.update()
     bar.close()
     sets = [parts[kind, inst.name] for kind, inst in jobs]
     if training_only:

@@ -46,11 +46,13 @@ from ipbench.eval.sorting_report import (
     loss_decomposition,
     write_report,
 )
+from ipbench.eval.workers import run_tasks
 from ipbench.policies import (
     EVAL_CAMERAS,
     FUSIONS,
     INTERACTIVE,
     POLICIES,
+    POLICY_VERSION,
     READS_INFO,
     NothingToSort,
     PolicyModels,
@@ -167,7 +169,9 @@ class SortingEvalConfig:
             if k
             not in ("scenes", "policies", "seeds", "workers", "backend", "ray_address", "video")
         }
-        text = json.dumps([keep, models_key, EPISODE_VERSION], sort_keys=True, default=str)
+        text = json.dumps(
+            [keep, models_key, EPISODE_VERSION, POLICY_VERSION], sort_keys=True, default=str
+        )
         return hashlib.sha256(text.encode()).hexdigest()[:16]
 
 
@@ -223,7 +227,13 @@ def _validation_evidence(
 
 def _validation_key(model, config: SortingEvalConfig) -> list:
     """What the validation evidence depends on."""
-    return [model.key, list(config.validation_seeds), config.steps_per_object, _VALIDATION_PROTOCOL]
+    return [
+        model.key,
+        list(config.validation_seeds),
+        config.steps_per_object,
+        _VALIDATION_PROTOCOL,
+        POLICY_VERSION,
+    ]
 
 
 def _cache_path(cache: Path, kind: str, classifier: str, parts: list) -> Path:
@@ -450,16 +460,17 @@ def _run_serial(tasks, models, config) -> Iterator[dict]:
 
 
 def _run_processes(tasks, models, config) -> Iterator[dict]:
-    import multiprocessing as mp
-    from concurrent.futures import ProcessPoolExecutor, as_completed
-
-    ctx = mp.get_context("spawn")  # no forked GL contexts or BLAS thread pools
-    with ProcessPoolExecutor(
-        config.workers, mp_context=ctx, initializer=_init_worker, initargs=(models, config)
-    ) as pool:
-        futures = [pool.submit(_worker_episode, t) for t in _longest_first(tasks)]
-        for future in as_completed(futures):
-            yield future.result()
+    ordered = _longest_first(tasks)
+    episodes = run_tasks(
+        _worker_episode,
+        [(t,) for t in ordered],
+        config.workers,
+        _init_worker,
+        (models, config),
+        what="episode",
+    )
+    for _, record in episodes:
+        yield record
 
 
 def _run_ray(tasks, models, config) -> Iterator[dict]:

@@ -24,6 +24,7 @@ __all__ = [
     "FUSIONS",
     "INTERACTIVE",
     "POLICIES",
+    "POLICY_VERSION",
     "Decision",
     "Detection",
     "NothingToSort",
@@ -43,6 +44,12 @@ POLICIES: tuple[str, ...] = (
     "oracle-scene",
 )
 """Policy names of the benchmark."""
+POLICY_VERSION = 2
+"""Version of what the policies do with an observation (perception, grasp planning, decision
+rules), for every env version: part of an evaluation run's fingerprint and of its cached
+threshold evidence, so a run or a cache from other policy code is never mixed with this one's.
+2: grasp planning with the palm's volume, short objects held with the pads under their top,
+short round objects centred on their rim circle."""
 READS_INFO: frozenset[str] = frozenset({"oracle", "oracle-scene"})
 """The policies that read ``info`` (ground truth): ``act(observation, info)``."""
 EVAL_CAMERAS: tuple[str, ...] = ("wrist",)

@@ -9,7 +9,11 @@ reaching down to the finger tips (:func:`tip_height`):
   grown by ``margin``; a point of *any* segment (the target too: the jaws are opened too
   little) or of the table in it stops the guarded descent on top of something;
 - the *closing* box between the pads, as wide as the fingers: a point of *another* segment
-  in it is squeezed, pushed or lifted together with the target.
+  in it is squeezed, pushed or lifted together with the target;
+- the *palm* box, the gripper's 27 cm wide body over the fingers, from its bottom
+  (``palm`` bottom 13.5 cm above the TCP) up: a point of another segment under it (a tall
+  neighbour beside a short target, within 13.5 cm along the jaws) stops the descent with the
+  pads still above the target.
 
 :func:`check_grasp` reports whether the grasp is free and its ``clearance``, the horizontal
 distance (m) from the landing boxes to the nearest other segment's point above the finger
@@ -26,7 +30,14 @@ import numpy as np
 from ipbench.envs.skills import SkillConfig
 from ipbench.perception.segmentation import GripperGeometry
 
-__all__ = ["FreeGraspConfig", "GraspCheck", "check_grasp", "tip_height"]
+__all__ = [
+    "FreeGraspConfig",
+    "GraspCheck",
+    "check_grasp",
+    "palm_height",
+    "tcp_height",
+    "tip_height",
+]
 
 _SKILLS = SkillConfig()
 _GRIPPER = GripperGeometry()
@@ -54,21 +65,40 @@ DEFAULT_FREE_GRASP = FreeGraspConfig()
 class GraspCheck:
     """Outcome of :func:`check_grasp`: ``free`` (no obstacle in the jaws' volumes),
     ``landing_hits`` points in the landing boxes (any segment), ``closing_hits`` points of other
-    segments between the pads, ``clearance`` (m, see the module docstring)."""
+    segments between the pads, ``clearance`` (m, see the module docstring), ``palm_hits``
+    points of other segments under the palm."""
 
     free: bool
     landing_hits: int
     closing_hits: int
     clearance: float
+    palm_hits: int = 0
+
+    @property
+    def hits(self) -> int:
+        """Points in the way, all volumes together."""
+        return self.landing_hits + self.closing_hits + self.palm_hits
+
+
+def tcp_height(position_z: float, table_z: float) -> float:
+    """World z (m) the TCP descends to for a grasp at ``position_z``: the skill goes
+    ``grasp_depth`` below it, no lower than ``min_grasp_height`` above the table
+    (:class:`~ipbench.envs.skills.SkillConfig`)."""
+    return max(position_z - _SKILLS.grasp_depth, table_z + _SKILLS.min_grasp_height)
 
 
 def tip_height(position_z: float, table_z: float) -> float:
-    """World z (m) the finger tips reach for a grasp at TCP height ``position_z``: the skill
-    goes ``grasp_depth`` below it, no lower than ``min_grasp_height`` above the table
-    (:class:`~ipbench.envs.skills.SkillConfig`), and the tips stand below the TCP by the
-    fingers' reach past it (:class:`~ipbench.perception.segmentation.GripperGeometry`)."""
-    tcp = max(position_z - _SKILLS.grasp_depth, table_z + _SKILLS.min_grasp_height)
-    return tcp - (_GRIPPER.finger_z[1] - _GRIPPER.tcp_offset)
+    """World z (m) the finger tips reach for a grasp at ``position_z``: :func:`tcp_height`
+    less the fingers' reach past the TCP
+    (:class:`~ipbench.perception.segmentation.GripperGeometry`)."""
+    return tcp_height(position_z, table_z) - (_GRIPPER.finger_z[1] - _GRIPPER.tcp_offset)
+
+
+def palm_height(position_z: float, table_z: float) -> float:
+    """World z (m) of the palm's bottom for a grasp at ``position_z`` (the palm box's end
+    nearest the fingers tips, :class:`~ipbench.perception.segmentation.GripperGeometry`)."""
+    bottom = _GRIPPER.palm_center[2] + _GRIPPER.palm_half[2]
+    return tcp_height(position_z, table_z) + (_GRIPPER.tcp_offset - bottom)
 
 
 def _local(points: np.ndarray, position: np.ndarray, yaw: float) -> np.ndarray:
@@ -116,10 +146,22 @@ def check_grasp(
     landing = int(in_landing(mine).sum() + in_landing(theirs).sum())
     between = (np.abs(theirs[:, 0]) < inner) & (np.abs(theirs[:, 1]) <= half_y)
     closing = int(between.sum())
+    # the palm: other segments' points above its bottom within its footprint (margin around)
+    others = np.asarray(others, dtype=float).reshape(-1, 3)
+    high = others[others[:, 2] > palm_height(float(position[2]), table_z) - config.tip_margin]
+    palm = _local(high, position, yaw)
+    m = config.margin
+    palm_hits = int(
+        np.sum(
+            (np.abs(palm[:, 0]) <= _GRIPPER.palm_half[0] + m)
+            & (np.abs(palm[:, 1]) <= _GRIPPER.palm_half[1] + m)
+        )
+    )
     clearance = config.max_clearance
     if len(theirs):
         # distance from each finger's box [inner, outer] x [-half_y, half_y] (both sides)
         dx = np.maximum(np.maximum(inner - np.abs(theirs[:, 0]), np.abs(theirs[:, 0]) - outer), 0)
         dy = np.maximum(np.abs(theirs[:, 1]) - half_y, 0.0)
         clearance = float(min(clearance, np.hypot(dx, dy).min()))
-    return GraspCheck(landing == 0 and closing == 0, landing, closing, clearance)
+    free = landing == 0 and closing == 0 and palm_hits == 0
+    return GraspCheck(free, landing, closing, clearance, palm_hits)

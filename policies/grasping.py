@@ -4,7 +4,9 @@ The camera sees only an object's front, so the box of its points is short along 
 sight; the footprint is completed by assuming the unseen back is as deep as the object is wide
 (:func:`completed_footprint`: a cylinder's or a box's centre moves back by half the missing
 depth). The grasp point is that footprint's centre, lowered for short objects to just under the top
-(a bowl is held by its rim, as in :func:`ipbench.policies.scripted.grasp_point`). The jaws
+(a bowl is held by its rim, as in :func:`ipbench.policies.scripted.grasp_point`); a short
+round object is centred on the circle fitted to its rim (:func:`rim_circle`), which a wide bowl
+in 21 cm jaws needs to within about a centimetre. The jaws
 close across the box's narrower horizontal side unless the depth image shows that grasp to be
 blocked (:mod:`ipbench.policies.free_grasp`: a finger would land on something, or another
 object is between the pads), in which case a wider opening, the other side or a diagonal is
@@ -18,12 +20,20 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ipbench.envs.skills import SkillConfig
 from ipbench.envs.sorting import MAX_JAW_OPENING
 from ipbench.perception.segmentation import Segment, grasp_yaw
 from ipbench.policies.free_grasp import DEFAULT_FREE_GRASP, FreeGraspConfig, check_grasp
 from ipbench.policies.scripted import SHORT, TOP_MARGIN, opening_across
 
-__all__ = ["FailureMemory", "GraspTarget", "completed_footprint", "grasp_target", "jaw_opening"]
+__all__ = [
+    "FailureMemory",
+    "GraspTarget",
+    "completed_footprint",
+    "grasp_target",
+    "jaw_opening",
+    "rim_circle",
+]
 
 SQUARE = 1.2
 """Footprints whose sides differ by less than this ratio are near-square (round objects)."""
@@ -31,8 +41,18 @@ BOX_TURNS = (0.0, np.pi / 2, np.pi / 4, -np.pi / 4)
 """Jaw turns tried from the first choice (rad), in order of preference."""
 ROUND_TURNS = (0.0, np.pi / 2, np.pi / 6, -np.pi / 6, np.pi / 3, -np.pi / 3)
 """The same for near-square footprints, whose width is about the same across any turn."""
+GRASP_DEPTH = SkillConfig().grasp_depth
+"""How far below a pick's position the skill takes the TCP (m; every Sorting version's)."""
 MAX_COMPLETION = 0.05
 """Most the footprint is deepened along the line of sight (m)."""
+RIM_BAND = 0.008
+"""A short round segment's rim: its points within this of its top (m)."""
+RIM_FIT_RMS = 0.004
+"""Largest RMS distance (m) of the rim points from their fitted circle for the fit to count
+(a ring of a bowl's or a mug's rim fits within depth noise; a flat top does not)."""
+RIM_MAX_SHIFT = 0.04
+"""Largest move (m) of the footprint's centre to the rim circle's (a fit further off is
+taken for a wrong one)."""
 
 
 @dataclass(frozen=True)
@@ -72,6 +92,35 @@ def completed_footprint(segment: Segment, viewpoint: np.ndarray) -> tuple[np.nda
     return centre, ext
 
 
+def rim_circle(segment: Segment) -> tuple[np.ndarray, float] | None:
+    """Centre (2,) and radius (m) of a short round object's rim, fitted to the segment's
+    points within :data:`RIM_BAND` of its top (an algebraic least-squares circle, Kasa 1976):
+    a bowl shows its rim's near and far arcs, whose circle finds the object's axis where the
+    box of its points is pulled by depth gaps and neighbours' occlusions. None when the points
+    do not lie on a circle (:data:`RIM_FIT_RMS`), or lie on too short an arc to fit one."""
+    pts = np.asarray(segment.points, dtype=float)
+    rim = pts[pts[:, 2] > float(segment.top) - RIM_BAND][:, :2]
+    if len(rim) < 20:
+        return None
+    origin = rim.mean(axis=0)
+    xy = rim - origin
+    # x^2 + y^2 = 2 a x + 2 b y + c, linear in (a, b, c)
+    design = np.column_stack([2 * xy, np.ones(len(xy))])
+    (a, b, c), *_ = np.linalg.lstsq(design, (xy**2).sum(axis=1), rcond=None)
+    r2 = c + a * a + b * b
+    if r2 <= 0:
+        return None
+    radius = float(np.sqrt(r2))
+    dist = np.hypot(xy[:, 0] - a, xy[:, 1] - b)
+    if np.sqrt(np.mean((dist - radius) ** 2)) > RIM_FIT_RMS:
+        return None
+    angles = np.sort(np.arctan2(xy[:, 1] - b, xy[:, 0] - a))
+    gaps = np.diff(np.r_[angles, angles[0] + 2 * np.pi])
+    if 2 * np.pi - gaps.max() < np.pi / 2:  # the points span less than a quarter circle
+        return None
+    return origin + np.array([a, b]), radius
+
+
 def grasp_target(
     segment: Segment,
     others: np.ndarray | list = (),
@@ -91,19 +140,27 @@ def grasp_target(
     """
     top = float(segment.top)
     height = float(segment.height)
-    z = top - TOP_MARGIN if height < SHORT else top - 0.5 * height
+    # the pick skill takes the TCP ``grasp_depth`` below the position it is given (to hold
+    # tall objects under their centroid): a short object's position is raised by as much, so
+    # that the pads close TOP_MARGIN under its top, on a bowl's rim
+    z = top - TOP_MARGIN + GRASP_DEPTH if height < SHORT else top - 0.5 * height
     if viewpoint is None:
         centre, ext = np.asarray(segment.box_center[:2]), np.asarray(segment.box_extent[:2])
     else:
         centre, ext = completed_footprint(segment, viewpoint)
+    lo, hi = np.sort(ext)
+    round_ = hi < SQUARE * max(lo, 1e-6)
+    if round_ and height < SHORT:
+        rim = rim_circle(segment)
+        if rim is not None and np.linalg.norm(rim[0] - centre) <= RIM_MAX_SHIFT:
+            centre = rim[0]
     position = np.array([centre[0], centre[1], z])
     yaw = grasp_yaw(segment)  # across the box's y side
     if ext[0] < ext[1]:
         yaw += np.pi / 2
     first = yaw + turn * np.pi / 2
     candidates = []
-    lo, hi = np.sort(ext)
-    turns = ROUND_TURNS if hi < SQUARE * max(lo, 1e-6) else BOX_TURNS
+    turns = ROUND_TURNS if round_ else BOX_TURNS
     for k, dyaw in enumerate(turns):
         opening = jaw_opening(segment, ext, first + dyaw)
         candidates.append((_wrap(first + dyaw), opening))
@@ -131,7 +188,7 @@ def grasp_target(
         else:
             best = min(
                 range(len(checks)),
-                key=lambda k: (checks[k].landing_hits + checks[k].closing_hits, k),
+                key=lambda k: (checks[k].hits, k),
             )
     yaw, opening = candidates[best]
     return GraspTarget(position, yaw, opening, checks[best].free, checks[best].clearance)

@@ -10,7 +10,7 @@ from ipbench.perception.segmentation import make_segment
 from ipbench.perception.split import ObjectEnvelope, fits_one_object, split_merged, split_segment
 from ipbench.policies.envelopes import object_envelopes
 from ipbench.policies.free_grasp import check_grasp, tip_height
-from ipbench.policies.grasping import grasp_target
+from ipbench.policies.grasping import grasp_target, rim_circle
 
 TABLE = 0.72
 UP, OFFSET = np.array([0.0, 0.0, 1.0]), -TABLE  # the table plane z = TABLE
@@ -82,6 +82,51 @@ def test_an_object_between_the_pads_blocks_the_grasp() -> None:
     small = _box((1.0 + 0.045, 0.0), (0.02, 0.02, 0.15))  # inside the open jaws, beside it
     check = check_grasp(np.array([1.0, 0.0, TABLE + 0.1]), 0.0, 0.15, target, small, TABLE)
     assert not check.free and check.closing_hits > 0
+
+
+def test_a_tall_neighbour_under_the_palm_blocks_a_short_target() -> None:
+    """A 9 cm bowl-like cylinder (r 8.5 cm) with a 23 cm bottle 5.5 cm beyond its rim: closing
+    along x keeps the fingers clear of the bottle but puts the 27 cm palm onto its top (the
+    descent would stop with the pads over the rim); closing along y turns the palm away."""
+    bowl = _cylinder((1.0, 0.0), 0.085, 0.09)
+    bottle = _cylinder((1.0 + 0.085 + 0.055 + 0.04, 0.0), 0.04, 0.23)
+    position = np.array([1.0, 0.0, TABLE + 0.09 - 0.025 + 0.02])
+    along_x = check_grasp(position, 0.0, 0.21, bowl, bottle, TABLE)
+    assert along_x.landing_hits == 0 and along_x.closing_hits == 0
+    assert along_x.palm_hits > 0 and not along_x.free
+    assert check_grasp(position, np.pi / 2, 0.21, bowl, bottle, TABLE).free
+    # a short neighbour there passes under the palm
+    flat = _cylinder((1.0 + 0.085 + 0.055 + 0.04, 0.0), 0.04, 0.10)
+    assert check_grasp(position, 0.0, 0.21, bowl, flat, TABLE).free
+    # grasp planning turns the jaws
+    grasp = grasp_target(_segment(bowl), bottle)
+    assert grasp.free and abs(np.cos(grasp.yaw)) < 0.9
+
+
+def _bowl_view(centre_xy, rim, height, seen=(-0.6 * np.pi, 0.6 * np.pi), step=0.003):
+    """What the camera sees of a bowl: its rim ring over an arc ``seen`` (rad), the inside
+    below it, and a few points of a neighbour's occlusion missing."""
+    angles = np.arange(seen[0], seen[1], step / rim)
+    ring = [(rim * np.cos(a), rim * np.sin(a), height - z) for a in angles for z in (0, 0.004)]
+    inside = [
+        (r * np.cos(a), r * np.sin(a), 0.01)
+        for r in np.arange(0.0, rim - 0.02, 0.006)
+        for a in np.linspace(0, 2 * np.pi, 24, endpoint=False)
+    ]
+    return np.vstack([ring, inside]) + np.array([centre_xy[0], centre_xy[1], TABLE])
+
+
+def test_a_short_round_segment_is_centred_on_its_rim() -> None:
+    """A 9 cm rim seen over 216 deg: the box of the points is off the bowl's axis by a
+    couple of cm, the rim circle is not, and the grasp aims at the circle's centre."""
+    bowl = _segment(_bowl_view((1.0, 0.0), 0.09, 0.08))
+    centre, radius = rim_circle(bowl)
+    np.testing.assert_allclose(centre, [1.0, 0.0], atol=2e-3)
+    assert radius == pytest.approx(0.09, abs=3e-3)
+    assert np.linalg.norm(bowl.box_center[:2] - [1.0, 0.0]) > 0.01  # the box is off
+    assert np.linalg.norm(grasp_target(bowl).position[:2] - [1.0, 0.0]) < 2e-3
+    # a flat top (a lying box) is no circle: no fit, the box's centre stays
+    assert rim_circle(_segment(_box((1.0, 0.0), (0.10, 0.10, 0.08)))) is None
 
 
 def test_points_below_the_finger_tips_do_not_block() -> None:

@@ -7,6 +7,7 @@ import importlib
 import numpy as np
 import pytest
 
+from ipbench.envs.skills import SkillConfig
 from ipbench.envs.sorting import MAX_JAW_OPENING
 from ipbench.perception.segmentation import Segment
 from ipbench.policies import POLICIES, PolicyError, make_policy
@@ -20,7 +21,7 @@ from ipbench.policies.grasping import (
 )
 from ipbench.policies.interactive import InteractiveConfig, InteractiveSorter
 from ipbench.policies.perceiver import Detection
-from ipbench.policies.scripted import OPENING_MARGIN
+from ipbench.policies.scripted import OPENING_MARGIN, TOP_MARGIN
 from ipbench.policies.threshold import choose_threshold
 
 CLASSES = ("juice_bottle", "milk_carton", "bowl", "mug", "juice_box")
@@ -100,6 +101,16 @@ def test_footprint_is_completed_away_from_the_camera() -> None:
         abs(abs(turned.yaw - target.yaw) - np.pi / 2) < 1e-6
         or abs(abs(turned.yaw - target.yaw) - 3 * np.pi / 2) < 1e-6
     )
+
+
+def test_a_short_object_is_held_by_the_pads_just_under_its_top() -> None:
+    """A 9 cm bowl: the skill takes the TCP (the pads' centre) ``grasp_depth`` below the
+    position, so the position is raised by as much and the pads close TOP_MARGIN under the
+    rim, not 2 cm lower on the sloping wall."""
+    seg = _segment([1.0, 0.0, 0.80], [0.17, 0.17, 0.09], top=0.85, height=0.09)
+    target = grasp_target(seg, [])
+    tcp = target.position[2] - SkillConfig().grasp_depth
+    assert tcp == pytest.approx(0.85 - TOP_MARGIN)
 
 
 def test_jaws_open_to_the_width_across_them() -> None:
