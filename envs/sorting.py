@@ -272,7 +272,7 @@ V2: dict = {
     "physics": FAST_PHYSICS,
     "pick_command": True,
 }
-"""The settings ``Sorting-v2`` (under development) adds to v1: the v2 object catalogue (real
+"""The settings ``Sorting-v2`` (released with issue 12) adds to v1: the v2 object catalogue (real
 product families, printed textures, train / similar / novel splits), structured-light
 depth as the sensor makes it (projector shadow, disparity block matching, per-unit error),
 faster physics (:data:`~ipbench.envs.world.FAST_PHYSICS`: objects at rest sleep), and the

@@ -14,7 +14,7 @@ thresholds from the cache. Keys:
   ``speedup_2_workers`` ~= 2 x ``busy_2_workers`` / ``slowdown_2_workers``;
 - ``episode_s_v1``, ``episode_s_v2``: mean wall seconds of the same cluttered ``oracle``
   episodes (true labels: no threshold, the same segmentation and grasping code) on
-  ``ipbench/Sorting-v1`` and ``ipbench/Sorting-v2`` (under development), one worker, measured
+  ``ipbench/Sorting-v1`` and ``ipbench/Sorting-v2``, one worker, measured
   one after the other in this run; ``episode_speedup_v2`` = v1 / v2.
 """
 

@@ -67,10 +67,12 @@ class _Parser(argparse.ArgumentParser):
         super().__init__(*args, **kwargs)
 
 
-def _add_env_option(parser: argparse.ArgumentParser, default: str = "ipbench/Sorting-v1") -> None:
+def _add_env_option(parser: argparse.ArgumentParser, default: str | None = None) -> None:
+    from ipbench.envs import LATEST
+
     parser.add_argument(
         "--env",
-        default=default,
+        default=default or LATEST,
         help="environment id whose objects and sensor are used: {ENV_IDS}",
     )
 

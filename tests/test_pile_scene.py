@@ -14,7 +14,7 @@ from gymnasium.utils import seeding
 
 import ipbench.envs
 from ipbench.assets.objects import CATEGORIES, FAMILIES
-from ipbench.envs import UNDER_DEVELOPMENT, env_config
+from ipbench.envs import UNDER_DEVELOPMENT, V2_IDS, env_config
 from ipbench.envs.layout import (
     PILE_CLEARANCE,
     PILE_MAX_LIFT,
@@ -74,7 +74,7 @@ def test_pile_is_a_v2_scene_of_its_own_id():
     assert scenes_for("v1") == STANDARD_SCENES
     assert scenes_for("v2") == (*STANDARD_SCENES, "pile")
     assert PILE_ID in ipbench.envs.ENV_IDS and PILE_ID in gym.registry
-    assert PILE_ID in UNDER_DEVELOPMENT
+    assert PILE_ID in V2_IDS and PILE_ID not in UNDER_DEVELOPMENT
     config = env_config(PILE_ID)
     assert config.scene == "pile" and config.catalog == "v2"
     assert env_config("ipbench/Sorting-v2", scene="pile") == config

@@ -1,4 +1,4 @@
-"""Sorting-v2 (under development): the v2 objects and the structured-light sensor, behind
+"""Sorting-v2 (released by issue 12): the v2 objects and the structured-light sensor, behind
 the same contract as v1 (the battery in test_envs.py runs over every id, v2 included)."""
 
 from __future__ import annotations
@@ -9,7 +9,7 @@ import pytest
 
 import ipbench.envs
 from ipbench.assets.objects import CATEGORIES, FAMILIES
-from ipbench.envs import UNDER_DEVELOPMENT, EnvIdError, env_config
+from ipbench.envs import UNDER_DEVELOPMENT, V2_IDS, EnvIdError, env_config
 from ipbench.envs.depth_noise import STRUCTURED_LIGHT, DepthNoiseConfig
 from ipbench.envs.layout import SCENES, LayoutError, sample_layout
 from ipbench.envs.sorting import workcell_places
@@ -27,15 +27,17 @@ def _layout(scene: str, seed: int, catalog: str = "v2"):
     )
 
 
-def test_v2_ids_are_registered_under_development_and_configured():
-    for env_id in UNDER_DEVELOPMENT:
+def test_v2_ids_are_registered_released_and_configured():
+    assert not set(V2_IDS) & set(UNDER_DEVELOPMENT)  # released by issue 12
+    for env_id in V2_IDS:
         assert env_id in ipbench.envs.ENV_IDS and env_id in gym.registry
         config = env_config(env_id)
         assert config.catalog == "v2" and config.depth_noise == STRUCTURED_LIGHT
     assert env_config("ipbench/Sorting-v1").catalog == "v1"
     assert env_config("ipbench/Sorting-v1").depth_noise == DepthNoiseConfig()
     assert env_config("ipbench/SortingCluttered-v2").scene == "cluttered"
-    assert ipbench.envs.LATEST == "ipbench/Sorting-v1"  # the benchmark runs a released id
+    assert ipbench.envs.LATEST == "ipbench/Sorting-v2"  # the benchmark runs a released id
+    assert ipbench.envs.LATEST not in UNDER_DEVELOPMENT
 
 
 def test_bad_ids_and_catalogues_name_the_valid_ones():
