@@ -575,6 +575,7 @@ def run_sorting_eval(
         json.dumps(
             {
                 "fingerprint": fingerprint,
+                "policy_version": POLICY_VERSION,
                 "thresholds": models.thresholds,
                 "model_keys": keys,
                 "perception_key": model_key(config.perception, CATEGORIES),

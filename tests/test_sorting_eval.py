@@ -246,3 +246,16 @@ def test_validation_evidence_is_in_task_order_whatever_order_workers_finish(monk
     # the standard scenes' validation episodes (not the pile's)
     assert conf.tolist() == sorted(conf.tolist()) and len(conf) == 3 * len(STANDARD_SCENES)
     assert correct.all()
+
+
+def test_runs_and_thresholds_of_other_policy_code_are_never_reused(monkeypatch):
+    """The policy code's version is in the run fingerprint (a folder of other policy code is
+    refused, not resumed) and in the cached threshold evidence's key (chosen again)."""
+    import ipbench.eval.sorting as sorting
+
+    config = sorting.SortingEvalConfig()
+    model = type("Model", (), {"key": "m"})()
+    run, evidence = config.fingerprint("k"), sorting._validation_key(model, config)
+    monkeypatch.setattr(sorting, "POLICY_VERSION", sorting.POLICY_VERSION + 1)
+    assert config.fingerprint("k") != run
+    assert sorting._validation_key(model, config) != evidence
