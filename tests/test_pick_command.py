@@ -103,3 +103,32 @@ def test_the_oracle_labels_what_it_holds_and_oracle_scene_what_it_aimed_at() -> 
         on_v1 = make_policy("oracle", models, commands=env.unwrapped.commands)
         on_v1.reset(0)
         assert on_v1.act(obs, info)["command"] == 0
+
+
+def test_a_wide_bowl_is_held_with_the_pads_under_its_rim() -> None:
+    """A 18 cm noodle bowl alone on the table, picked on its axis at three yaws with the TCP
+    where grasp planning puts it for a short object (``TOP_MARGIN`` under the top, the skill's
+    ``grasp_depth`` added back), is held every time."""
+    from ipbench.assets.objects import instances
+    from ipbench.eval.hand_views import _layout
+    from ipbench.policies.grasping import GRASP_DEPTH
+    from ipbench.policies.scripted import TOP_MARGIN
+
+    bowl = instances(catalog="v2", family="noodle")[0]
+    layout = _layout(bowl, "upright", 0.0)
+    assert layout is not None
+    with _env(V2) as env:
+        for yaw in (0.3, 1.2, 2.4):
+            _, info = env.reset(seed=0, options={"layout": layout})
+            obj = info["objects"][0]
+            top = obj["pose"][2] + bowl.size[2]
+            position = [obj["center"][0], obj["center"][1], top - TOP_MARGIN + GRASP_DEPTH]
+            action = {
+                "command": 3,
+                "position": np.array(position, np.float32),
+                "yaw": np.array([yaw], np.float32),
+                "bin": 0,
+                "opening": np.array([0.21], np.float32),
+            }
+            _, _, _, _, info = env.step(action)
+            assert info["objects"][0]["status"] == "in_hand", yaw
