@@ -11,7 +11,9 @@ The capture rig is the benchmark environment itself (the dataset's ``env_id``, b
 ``ipbench/Sorting-v1``, reset with a one-object layout): the object stands alone at the
 centre of the spawn area in each resting pose the scenes use (upright; on its side when it
 can lie), the gripper picks it across its narrower side at its bounding-box grasp point (the
-rig knows where it put the object, as an operator would), presents it to the wrist camera and
+rig knows where it put the object, as an operator would; a short object with the pads just
+under its top, as the policies' grasp planning holds it: dataset version 2, before which the
+pads closed 2 cm lower and held no noodle bowl at all), presents it to the wrist camera and
 turns it by ``in_hand_turn_deg`` between ``in_hand_views`` views. The wrist turns through
 about 180 deg, so each pose is captured from ``in_hand_placements`` grasps, the object put
 down turned by 360 deg / ``in_hand_placements`` between them, to show every side. Skills,
@@ -37,8 +39,9 @@ from ipbench.perception.features import fpfh
 from ipbench.perception.segmentation import segment_in_hand
 from ipbench.perception.viewset import ViewSet
 from ipbench.policies import EVAL_CAMERAS
+from ipbench.policies.grasping import GRASP_DEPTH
 from ipbench.policies.kinematics import HandKinematics
-from ipbench.policies.scripted import ROUND, grasp_point, grasp_yaws, jaw_span
+from ipbench.policies.scripted import ROUND, grasp_point, grasp_yaws, is_short, jaw_span
 
 if TYPE_CHECKING:
     from ipbench.eval.dataset import DatasetConfig
@@ -104,9 +107,12 @@ def _capture(env, obj: dict, inst: ObjectInstance, kinematics, config) -> list[n
     quat = obj["pose"][3:]
     yaw = grasp_yaws(quat, inst.size, round_=inst.category in ROUND)[0]
     yaw = (yaw + np.pi) % (2 * np.pi) - np.pi  # the action space's range
+    point = grasp_point(obj["center"], quat, inst.size)
+    if is_short(quat, inst.size):  # the pads just under its top, as grasp planning holds it
+        point[2] += GRASP_DEPTH  # (the skill goes grasp_depth below the position it is given)
     action = {
         "command": _INSPECT_IN_HAND,
-        "position": grasp_point(obj["center"], quat, inst.size).astype(np.float32),
+        "position": point.astype(np.float32),
         "yaw": np.array([yaw], np.float32),
         "bin": 0,
         "opening": np.array([jaw_span(quat, inst.size, yaw)], np.float32),

@@ -20,6 +20,7 @@ __all__ = [
     "grasp_yaws",
     "clearest_yaw",
     "grasp_point",
+    "is_short",
     "jaw_span",
     "opening_across",
     "OPENING_MARGIN",
@@ -78,15 +79,24 @@ TOP_MARGIN = 0.025
 """How far below the top short objects are grasped (m): a bowl by its rim, not its slope."""
 
 
+def _half_height(quat: np.ndarray, size: tuple[float, float, float]) -> float:
+    rot = np.empty(9)
+    mujoco.mju_quat2Mat(rot, np.asarray(quat, float))
+    return 0.5 * float(np.abs(rot.reshape(3, 3)[2]) @ np.asarray(size))
+
+
+def is_short(quat: np.ndarray, size: tuple[float, float, float]) -> bool:
+    """Whether an object of ``size`` (3,) (its own frame, m) turned by ``quat`` stands lower
+    than :data:`SHORT` (its top is where it is grasped)."""
+    return 2 * _half_height(quat, size) < SHORT
+
+
 def grasp_point(center: np.ndarray, quat: np.ndarray, size: tuple[float, float, float]):
     """Where to grasp (3,): the bounding-box centre, lowered to just under the top for short
     objects (the jaws close on a bowl's rim rather than wedging its conical wall upwards)."""
-    rot = np.empty(9)
-    mujoco.mju_quat2Mat(rot, np.asarray(quat, float))
-    half_height = 0.5 * float(np.abs(rot.reshape(3, 3)[2]) @ np.asarray(size))
     point = np.array(center, float)
-    if 2 * half_height < SHORT:
-        point[2] += half_height - TOP_MARGIN
+    if is_short(quat, size):
+        point[2] += _half_height(quat, size) - TOP_MARGIN
     return point
 
 

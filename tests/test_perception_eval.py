@@ -88,6 +88,19 @@ def test_in_hand_views_show_each_instance_held_by_the_gripper(views):
         assert d.shape[1] == 33 and len(d) > 0 and np.isfinite(d).all()
 
 
+def test_a_wide_bowl_is_captured_in_hand() -> None:
+    """Dataset version 2: the capture holds a v2 noodle bowl (18 cm, in 21 cm jaws) with the
+    pads under its rim; with the pads 2 cm lower (version 1) it held none, and the in-hand
+    model had never seen one."""
+    from ipbench.assets.objects import instances
+    from ipbench.eval.hand_views import render_in_hand_views
+
+    config = DatasetConfig(env_id="ipbench/Sorting-v2", in_hand_views=2, in_hand_placements=1)
+    bowl = instances(catalog="v2", family="noodle")[0]
+    views = render_in_hand_views(bowl, config)
+    assert len(views) == 2 and set(views.instance) == {bowl.name}
+
+
 def test_each_condition_trains_on_its_own_known_views(views):
     for condition, source in CONDITIONS.items():
         train = training_views(views, condition)
