@@ -710,22 +710,40 @@ def _overlap(a: Mapping, b: Mapping) -> bool:
     return max(a["ci_low"], b["ci_low"]) <= min(a["ci_high"], b["ci_high"])
 
 
-def _paired_line(scene: str, runs: Mapping[str, Sequence[Mapping]], summary: Mapping) -> str:
+def _paired_line(
+    scene: str,
+    runs: Mapping[str, Sequence[Mapping]],
+    summary: Mapping,
+    policy: str = "gp-ipm",
+    baseline: str = "random",
+) -> str:
     per_seed = {
-        p: {int(ep["seed"]): float(ep["accuracy"]) for ep in runs[p]} for p in ("gp-ipm", "random")
+        p: {int(ep["seed"]): float(ep["accuracy"]) for ep in runs[p]} for p in (policy, baseline)
     }
-    t = paired_test(per_seed["gp-ipm"], per_seed["random"])
-    head = f"**Paired test, {scene}, `gp-ipm` − `random`:** "
+    t = paired_test(per_seed[policy], per_seed[baseline])
+    head = f"**Paired test, {scene}, `{policy}` − `{baseline}`:** "
     if t.n == 0:
         return head + "no seed in common, no test."
     method = "exact" if t.method == "exact" else "100,000 random sign flips"
-    overlap = "overlap" if _overlap(summary["gp-ipm"], summary["random"]) else "do not overlap"
+    overlap = "overlap" if _overlap(summary[policy], summary[baseline]) else "do not overlap"
     return (
         head + f"mean difference {100 * t.mean_diff:+.1f} points "
         f"(95 % CI [{100 * t.ci_low:+.1f}, {100 * t.ci_high:+.1f}]), "
         f"p {_p(t.p_value)} (two-sided sign-flip permutation test, {method}; "
         f"n = {t.n} paired seeds); the two policies' 95 % intervals {overlap}."
     )
+
+
+def _paired_lines(scene: str, runs: Mapping[str, Sequence[Mapping]], summary: Mapping) -> list:
+    """The paired test of every policy against random sorting (GP-IPM's first), and of
+    GP-IPM against SVM-IPM (does the GP's confidence matter?), where both ran."""
+    if "random" not in summary:
+        return []
+    others = _ordered((p for p in summary if p != "random"), ("gp-ipm",))
+    pairs = [(p, "random") for p in others]
+    if "gp-ipm" in summary and "svm-ipm" in summary:
+        pairs.append(("gp-ipm", "svm-ipm"))
+    return [line for p, b in pairs for line in (_paired_line(scene, runs, summary, p, b), "")]
 
 
 def _confidence_lines(points: Sequence[tuple[str, float, float, bool | None]]) -> list[str]:
@@ -807,8 +825,7 @@ def write_report(
         truncated = sum(s["truncated"] for s in by_policy.values())
         if truncated:
             lines += [f"{truncated} episode(s) stopped at the step limit (truncated).", ""]
-        if "gp-ipm" in by_policy and "random" in by_policy:
-            lines += [_paired_line(scene, runs[scene], by_policy), ""]
+        lines += _paired_lines(scene, runs[scene], by_policy)
         lines += _losses_lines(by_policy)
     lines += ["## Plots", "", "![accuracy by policy](accuracy_by_policy.png)", ""]
     points = _inspect_decisions(episodes)

@@ -343,3 +343,25 @@ def test_load_episodes_raises_on_a_corrupt_middle_line(tmp_path):
     path.write_text(json.dumps(THREE[0]) + "\n[1, 2]\n" + json.dumps(THREE[1]) + "\n")
     with pytest.raises(ValueError, match=r"episodes.jsonl:2: expected a JSON object"):
         load_episodes(path)
+
+
+def test_every_policy_is_tested_against_random_and_gp_against_svm(tmp_path):
+    """One paired test per policy against random sorting (GP-IPM's first), and GP-IPM
+    against SVM-IPM, each over the seeds both ran."""
+    right = {"oracle": 4, "gp-ipm": 3, "svm-ipm": 2, "random": 1}
+    eps = [
+        _episode("cluttered", p, s, {"mug": (right[p] if s < 4 else 2, 4)})
+        for p in right
+        for s in range(6)
+    ]
+    md = write_report(eps, tmp_path).markdown.read_text()
+    tests = [ln for ln in md.splitlines() if ln.startswith("**Paired test")]
+    assert [ln.split("`")[1:4:2] for ln in tests] == [
+        ["gp-ipm", "random"],
+        ["oracle", "random"],
+        ["svm-ipm", "random"],
+        ["gp-ipm", "svm-ipm"],
+    ]
+    # oracle - random: +75 points on four seeds of six, 0 on two: +50 points
+    assert "mean difference +50.0 points" in tests[1]
+    assert "mean difference +16.7 points" in tests[3]  # 25 points on 4 of 6 seeds
