@@ -1,8 +1,9 @@
 """``ipbench bench eval``: sorting episodes per minute, 1 and 2 workers, and v1 vs v2 episodes.
 
-Each rate runs ``episodes`` cluttered episodes (seeds 0, 1, ...) of one policy through the same
-executors as ``ipbench eval sorting`` — serially, then in 2 worker processes — with models and
-thresholds from the cache. Keys:
+Each rate runs ``episodes`` cluttered episodes (seeds 0, 1, ...) of one policy on the
+benchmark's id (:data:`ipbench.envs.LATEST`, with the models trained on its views: what
+``make eval`` runs) through the same executors as ``ipbench eval sorting`` — serially, then in
+2 worker processes — with models and thresholds from the cache. Keys:
 
 - ``<policy>_w1_episodes_per_min``, ``<policy>_w2_episodes_per_min`` for each policy asked
   for, and ``episodes_per_min_1``, ``episodes_per_min_2`` (GP-IPM's, always measured) with
@@ -24,6 +25,8 @@ import time
 from dataclasses import replace
 from pathlib import Path
 
+from ipbench.envs import LATEST
+from ipbench.eval.perception import PerceptionEvalConfig
 from ipbench.eval.sorting import (
     SortingEvalConfig,
     SortingEvalError,
@@ -51,7 +54,12 @@ def check_bench_eval(policies: tuple[str, ...], episodes: int) -> SortingEvalCon
         )
     SortingEvalConfig(scenes=("cluttered",), policies=tuple(policies))  # names checked
     wanted = tuple(dict.fromkeys((*policies, "gp-ipm", "oracle")))
-    return SortingEvalConfig(scenes=("cluttered",), policies=wanted, seeds=tuple(range(episodes)))
+    return SortingEvalConfig(
+        scenes=("cluttered",),
+        policies=wanted,
+        seeds=tuple(range(episodes)),
+        perception=PerceptionEvalConfig.for_env(LATEST),
+    )
 
 
 def _with_env(config: SortingEvalConfig, env_id: str) -> SortingEvalConfig:

@@ -46,3 +46,11 @@ def test_bench_eval_reports_rates_and_where_the_two_worker_speedup_goes(monkeypa
     assert figures["busy_2_workers"] == round(3 * 12.0 / (2 * 30.0), 3)
     assert figures["speedup_2_workers"] == 1.0
     assert {"episode_s_v1", "episode_s_v2", "episode_speedup_v2"} <= set(figures)
+
+
+def test_bench_eval_times_the_benchmarks_id():
+    """The rates are of the id `make eval` runs, with the models of its own views."""
+    from ipbench.envs import LATEST
+    from ipbench.eval.bench_eval import check_bench_eval
+
+    assert check_bench_eval(("random",), 2).perception.dataset.env_id == LATEST
