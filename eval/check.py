@@ -103,8 +103,9 @@ MEANINGS: dict[str, str] = {
 """What each verdict means for comparing results."""
 _STATUSES = ("exact", "close", "differs")
 _REPORTING = (
-    "To report a result, give the env id (e.g. ipbench/Sorting-v1), the seeds and this "
-    "verdict (ipbench check --json FILE holds the platform too)."
+    "To report a result, give the env id (e.g. ipbench/Sorting-v2), the policy code version "
+    "(ipbench.policies.POLICY_VERSION, in run.json), the seeds and this verdict "
+    "(ipbench check --json FILE holds the platform too)."
 )
 
 
