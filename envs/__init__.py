@@ -44,12 +44,7 @@ ENV_IDS: dict[str, dict] = {
 }
 """Every registered id and the keyword arguments it fixes."""
 
-V2_IDS: tuple[str, ...] = (
-    "ipbench/Sorting-v2",
-    "ipbench/SortingUncluttered-v2",
-    "ipbench/SortingCluttered-v2",
-    "ipbench/SortingPile-v2",
-)
+V2_IDS: tuple[str, ...] = tuple(i for i in ENV_IDS if i.endswith("-v2"))
 """The v2 ids (released by issue 12; frozen since, as every id not in
 :data:`UNDER_DEVELOPMENT`)."""
 

@@ -39,7 +39,7 @@ from ipbench.perception.features import fpfh
 from ipbench.perception.segmentation import segment_in_hand
 from ipbench.perception.viewset import ViewSet
 from ipbench.policies import EVAL_CAMERAS
-from ipbench.policies.grasping import GRASP_DEPTH
+from ipbench.policies.free_grasp import GRASP_DEPTH
 from ipbench.policies.kinematics import HandKinematics
 from ipbench.policies.scripted import ROUND, grasp_point, grasp_yaws, is_short, jaw_span
 

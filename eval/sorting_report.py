@@ -734,7 +734,7 @@ def _paired_line(
     )
 
 
-def _paired_lines(scene: str, runs: Mapping[str, Sequence[Mapping]], summary: Mapping) -> list:
+def _paired_lines(scene: str, runs: Mapping[str, Sequence[Mapping]], summary: Mapping) -> list[str]:
     """The paired test of every policy against random sorting (GP-IPM's first), and of
     GP-IPM against SVM-IPM (does the GP's confidence matter?), where both ran."""
     if "random" not in summary:

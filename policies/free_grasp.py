@@ -31,6 +31,7 @@ from ipbench.envs.skills import SkillConfig
 from ipbench.perception.segmentation import GripperGeometry
 
 __all__ = [
+    "GRASP_DEPTH",
     "FreeGraspConfig",
     "GraspCheck",
     "check_grasp",
@@ -41,6 +42,8 @@ __all__ = [
 
 _SKILLS = SkillConfig()
 _GRIPPER = GripperGeometry()
+GRASP_DEPTH = _SKILLS.grasp_depth
+"""How far below a pick's position the skill takes the TCP (m; every Sorting version's)."""
 
 
 @dataclass(frozen=True)
@@ -84,7 +87,7 @@ def tcp_height(position_z: float, table_z: float) -> float:
     """World z (m) the TCP descends to for a grasp at ``position_z``: the skill goes
     ``grasp_depth`` below it, no lower than ``min_grasp_height`` above the table
     (:class:`~ipbench.envs.skills.SkillConfig`)."""
-    return max(position_z - _SKILLS.grasp_depth, table_z + _SKILLS.min_grasp_height)
+    return max(position_z - GRASP_DEPTH, table_z + _SKILLS.min_grasp_height)
 
 
 def tip_height(position_z: float, table_z: float) -> float:

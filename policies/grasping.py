@@ -20,10 +20,14 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ipbench.envs.skills import SkillConfig
 from ipbench.envs.sorting import MAX_JAW_OPENING
 from ipbench.perception.segmentation import Segment, grasp_yaw
-from ipbench.policies.free_grasp import DEFAULT_FREE_GRASP, FreeGraspConfig, check_grasp
+from ipbench.policies.free_grasp import (
+    DEFAULT_FREE_GRASP,
+    GRASP_DEPTH,
+    FreeGraspConfig,
+    check_grasp,
+)
 from ipbench.policies.scripted import SHORT, TOP_MARGIN, opening_across
 
 __all__ = [
@@ -41,8 +45,6 @@ BOX_TURNS = (0.0, np.pi / 2, np.pi / 4, -np.pi / 4)
 """Jaw turns tried from the first choice (rad), in order of preference."""
 ROUND_TURNS = (0.0, np.pi / 2, np.pi / 6, -np.pi / 6, np.pi / 3, -np.pi / 3)
 """The same for near-square footprints, whose width is about the same across any turn."""
-GRASP_DEPTH = SkillConfig().grasp_depth
-"""How far below a pick's position the skill takes the TCP (m; every Sorting version's)."""
 MAX_COMPLETION = 0.05
 """Most the footprint is deepened along the line of sight (m)."""
 RIM_BAND = 0.008

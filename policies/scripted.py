@@ -95,8 +95,9 @@ def grasp_point(center: np.ndarray, quat: np.ndarray, size: tuple[float, float, 
     """Where to grasp (3,): the bounding-box centre, lowered to just under the top for short
     objects (the jaws close on a bowl's rim rather than wedging its conical wall upwards)."""
     point = np.array(center, float)
-    if is_short(quat, size):
-        point[2] += _half_height(quat, size) - TOP_MARGIN
+    half_height = _half_height(quat, size)
+    if 2 * half_height < SHORT:
+        point[2] += half_height - TOP_MARGIN
     return point
 
 
