@@ -82,7 +82,7 @@ def bench_eval(
     """The figures of the module docstring; bad settings raise before any work
     (:func:`check_bench_eval`)."""
     base = check_bench_eval(policies, episodes)
-    models, _ = prepare_models(cache, base)
+    models, _ = prepare_models(cache, replace(base, workers=2))  # views and models: 2 workers
     figures: dict[str, float] = {}
     seeds = range(episodes)
     inside: dict[int, float] = {}

@@ -156,7 +156,13 @@ def build_parser() -> argparse.ArgumentParser:
     sorting.add_argument(
         "--seeds", default="0:30", help="episode seeds: A:B (A..B-1) or a comma-separated list"
     )
-    sorting.add_argument("--workers", type=int, default=1, help="episodes run in parallel")
+    sorting.add_argument(
+        "--workers",
+        type=int,
+        default=1,
+        help="processes rendering the training views, training the models and running the "
+        "episodes in parallel; 1 runs everything here (make eval: 2)",
+    )
     _add_env_option(sorting)
     sorting.add_argument(
         "--backend",

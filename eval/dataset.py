@@ -67,6 +67,9 @@ __all__ = [
     "render_instance_views",
     "render_cluttered_segments",
     "load_or_build",
+    "missing_parts",
+    "render_part",
+    "save_part",
     "DATASET_VERSION",
 ]
 
@@ -302,10 +305,6 @@ _RENDERERS = {"isolated": render_instance_views, "in_hand": render_in_hand_views
 """Per-instance view sources and what renders them."""
 
 
-def _render_part(kind: str, inst: ObjectInstance, config: DatasetConfig) -> ViewSet:
-    return _RENDERERS[kind](inst, config)
-
-
 def _part_path(parts_dir: Path, kind: str, inst: ObjectInstance) -> Path:
     return parts_dir / (f"{inst.name}.npz" if kind == "isolated" else f"{inst.name}.{kind}.npz")
 
@@ -321,12 +320,65 @@ def _load_part(path: Path) -> ViewSet | None:
         return None
 
 
+def _jobs(
+    config: DatasetConfig, training_only: bool, kinds: tuple[str, ...] | None
+) -> list[tuple[str, ObjectInstance]]:
+    """The per-instance parts of a build, in the data's order (instance by instance)."""
+    wanted = tuple(_RENDERERS) if kinds is None else kinds
+    unknown = [k for k in wanted if k not in _RENDERERS]
+    if unknown:
+        raise ValueError(f"unknown view kinds {unknown}; valid: {', '.join(_RENDERERS)}")
+    chosen = [i for i in config.chosen_instances() if i.known or not training_only]
+    kinds = tuple(
+        k for k in _RENDERERS if k in wanted and (k != "in_hand" or config.in_hand_views > 0)
+    )
+    return [(kind, inst) for inst in chosen for kind in kinds]
+
+
+def missing_parts(
+    cache_dir: Path, config: DatasetConfig, training_only: bool = True
+) -> list[tuple[str, ObjectInstance]]:
+    """The parts :func:`load_or_build` would render now: none when the whole cache file
+    exists; else those without a readable part file, every isolated part before every in-hand
+    one (what table-top models read comes first)."""
+    cache_dir = Path(cache_dir)
+    if (cache_dir / f"views-{config.key()}.npz").exists():
+        return []
+    parts_dir = cache_dir / f"parts-{config.key()}"
+    todo = [
+        (kind, inst)
+        for kind, inst in _jobs(config, training_only, None)
+        if not _part_path(parts_dir, kind, inst).exists()
+    ]
+    return sorted(todo, key=lambda job: list(_RENDERERS).index(job[0]))  # stable
+
+
+def render_part(kind: str, inst: ObjectInstance, config: DatasetConfig) -> ViewSet:
+    """The views of one part (``kind`` one of ``isolated``, ``in_hand``) of ``inst``; what a
+    worker runs."""
+    return _RENDERERS[kind](inst, config)
+
+
+def save_part(
+    cache_dir: Path, config: DatasetConfig, kind: str, inst: ObjectInstance, views: ViewSet
+) -> None:
+    """Write one rendered part where :func:`load_or_build` finds it (atomically: a finished
+    part survives interruptions and worker crashes)."""
+    parts_dir = Path(cache_dir) / f"parts-{config.key()}"
+    parts_dir.mkdir(parents=True, exist_ok=True)
+    final = _part_path(parts_dir, kind, inst)
+    tmp = final.with_name(final.name.replace(".npz", ".tmp.npz"))
+    views.save(tmp)
+    tmp.replace(final)
+
+
 def load_or_build(
     cache_dir: Path,
     config: DatasetConfig = DatasetConfig(),
     progress: bool = True,
     workers: int = 2,
     training_only: bool = False,
+    kinds: tuple[str, ...] | None = None,
 ) -> ViewSet:
     """Every instance's isolated and in-hand views and the cluttered-scene segments, cached
     or rendered.
@@ -341,7 +393,12 @@ def load_or_build(
     about a third less rendering. They are the known views of the whole set, in its order (so the
     models are identical), taken from the whole cache file if it exists; otherwise only their
     parts are rendered, which a later whole build reuses (only a whole build writes the file).
+    ``kinds`` (with ``training_only``): only these per-instance view kinds, e.g.
+    ``("isolated",)`` for a table-top model (the same views, in the same order, as the subset
+    of the whole set).
     """
+    if kinds is not None and not training_only:
+        raise ValueError("kinds selects training views: pass training_only=True with it")
     cache_dir = Path(cache_dir)
     cache_dir.mkdir(parents=True, exist_ok=True)
     path = cache_dir / f"views-{config.key()}.npz"
@@ -349,16 +406,15 @@ def load_or_build(
         try:
             views = ViewSet.load(path)
             if training_only:
-                return views.subset(views.known & (views.source != "cluttered"))
+                sources = tuple(_RENDERERS) if kinds is None else kinds
+                return views.subset(views.known & np.isin(views.source, sources))
             return views
         except (OSError, ValueError, KeyError, zipfile.BadZipFile) as err:
             print(f"ipbench: dataset cache {path} is unreadable ({err}); rebuilding it")
             path.unlink()
     parts_dir = cache_dir / f"parts-{config.key()}"
     parts_dir.mkdir(exist_ok=True)
-    chosen = [i for i in config.chosen_instances() if i.known or not training_only]
-    kinds = [k for k in _RENDERERS if k != "in_hand" or config.in_hand_views > 0]
-    jobs = [(kind, inst) for inst in chosen for kind in kinds]
+    jobs = _jobs(config, training_only, kinds)
     parts: dict[tuple[str, str], ViewSet] = {}
     for kind, inst in jobs:
         part = _load_part(_part_path(parts_dir, kind, inst))
@@ -373,7 +429,7 @@ def load_or_build(
         disable=not progress,
     )
     renders = run_tasks(
-        _render_part,
+        render_part,
         [(kind, inst, config) for kind, inst in todo],
         workers,
         pool_worker if workers > 1 else None,
@@ -381,10 +437,7 @@ def load_or_build(
     )
     for k, views in renders:
         kind, inst = todo[k]
-        final = _part_path(parts_dir, kind, inst)
-        tmp = final.with_name(final.name.replace(".npz", ".tmp.npz"))
-        views.save(tmp)
-        tmp.replace(final)  # finished parts survive interruptions (and worker crashes)
+        save_part(cache_dir, config, kind, inst, views)
         parts[kind, inst.name] = views
         bar.update()
     bar.close()

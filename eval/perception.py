@@ -57,6 +57,7 @@ __all__ = [
     "split_tests",
     "encode",
     "model_key",
+    "model_path",
     "trained_model",
     "trained_models",
     "training_views",
@@ -169,17 +170,30 @@ def trained_models(
     classes: tuple[str, ...] = CATEGORIES,
     classifiers: tuple[str, ...] = ("gp",),
     condition: str = "scene",
+    workers: int = 2,
+    progress: bool = True,
 ) -> dict[str, PerceptionModel]:
     """The perception models (codebook + classifier, each one of ``"gp"``, ``"gp_mode"``,
     ``"svm"``, ``"sklearn_gp"``) for ``classes`` in the viewing ``condition`` (one of
     :data:`CONDITIONS`), cached in ``cache`` (trained if missing, stale or corrupt) — what the
     sorting policies classify with. Models trained together share one dataset load, codebook
-    and encoding; the codebook is fitted on the isolated views in every condition."""
+    and encoding; the codebook is fitted on the isolated views in every condition. Missing
+    views render in ``workers`` processes, with a bar if ``progress``
+    (:func:`ipbench.eval.prepare.prepare_perception` renders and trains several models in
+    one pool)."""
     shared: dict = {}
 
     def training_data() -> tuple[Codebook, np.ndarray, np.ndarray]:
-        if not shared:
-            views = load_or_build(cache, config.dataset, training_only=True)
+        if not shared:  # the isolated views (the codebook's) and the condition's: no others
+            kinds = tuple(dict.fromkeys((CONDITIONS["scene"], CONDITIONS[condition])))
+            views = load_or_build(
+                cache,
+                config.dataset,
+                progress=progress,
+                workers=workers,
+                training_only=True,
+                kinds=kinds,
+            )
             codebook = _fit_codebook(training_views(views, "scene"), config)
             train = training_views(views, condition)
             keep = np.isin(train.labels, [CATEGORIES.index(c) for c in classes])
@@ -206,9 +220,15 @@ def trained_models(
     with threadpool_limits(1):
         for classifier in classifiers:
             key = model_key(config, classes, classifier, condition)
-            path = Path(cache) / f"model-{key}.npz"
-            models[classifier] = load_or_train(path, key, trainer(classifier, key))
+            models[classifier] = load_or_train(
+                model_path(cache, key), key, trainer(classifier, key)
+            )
     return models
+
+
+def model_path(cache: Path, key: str) -> Path:
+    """Where the model of :func:`model_key` ``key`` is cached."""
+    return Path(cache) / f"model-{key}.npz"
 
 
 def trained_model(

@@ -39,6 +39,7 @@ from ipbench.envs.layout import SCENES, STANDARD_SCENES
 from ipbench.envs.sorting import workcell_places
 from ipbench.eval.files import ensure_writable
 from ipbench.eval.perception import PerceptionEvalConfig, model_key, trained_models
+from ipbench.eval.prepare import prepare_perception
 from ipbench.eval.schedule import longest_first, pool_worker, single_thread_worker, task_cost
 from ipbench.eval.sorting_report import (
     ThresholdSweep,
@@ -308,19 +309,27 @@ def prepare_models(
             f"the cache {cache} is not a folder ({err.filename} is a file); pass a folder path "
             "(created if missing), or move the file away"
         ) from err
-    with threadpool_limits(1):
-        wanted = ("gp", "svm") if "svm-ipm" in config.policies else ("gp",)
-        models = trained_models(cache, config.perception, CATEGORIES, wanted)
-        in_hand = tuple(
-            sorted(
-                {
-                    c
-                    for p, (c, mode) in INTERACTIVE.items()
-                    if p in config.policies and mode == "hand"
-                }
-            )
+    wanted = ("gp", "svm") if "svm-ipm" in config.policies else ("gp",)
+    in_hand = tuple(
+        sorted(
+            {c for p, (c, mode) in INTERACTIVE.items() if p in config.policies and mode == "hand"}
         )
-        hand = trained_models(cache, config.perception, CATEGORIES, in_hand, "in_hand")
+    )
+    # the views and the models from an empty cache in one pool (ipbench.eval.prepare)
+    prepare_perception(
+        cache,
+        config.perception,
+        (("scene", wanted), ("in_hand", in_hand)),
+        config.workers,
+        progress,
+    )
+    with threadpool_limits(1):
+        models = trained_models(
+            cache, config.perception, CATEGORIES, wanted, workers=config.workers
+        )
+        hand = trained_models(
+            cache, config.perception, CATEGORIES, in_hand, "in_hand", workers=config.workers
+        )
         needed = {INTERACTIVE[p][0] for p in config.policies if p in INTERACTIVE}
         choices = {c: _threshold(cache, models[c], c, config, progress) for c in sorted(needed)}
     policy_models = PolicyModels(

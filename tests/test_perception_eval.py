@@ -171,7 +171,7 @@ def test_training_only_build_renders_just_the_known_instances(cache, views, tmp_
     def no_clutter(*args, **kwargs):
         raise AssertionError("a training-only build rendered the cluttered scenes")
 
-    monkeypatch.setattr(dataset, "_render_part", fake_render)
+    monkeypatch.setattr(dataset, "render_part", fake_render)
     monkeypatch.setattr(dataset, "render_cluttered_segments", no_clutter)
     empty = tmp_path / "empty"
     load_or_build(empty, TINY, progress=False, workers=1, training_only=True)
