@@ -365,7 +365,7 @@ class SortingEnv(gym.Env):
         # v0 knows no speed limit (it truncated on NaN and warnings only)
         if self.config.undo_blowups and not self._blew_up:
             speed = np.abs(self.data.qvel[self._object_dofs])
-            self._blew_up = not np.all(speed < MAX_OBJECT_SPEED)  # NaN too
+            self._blew_up = not (speed < MAX_OBJECT_SPEED).all()  # NaN too (the method: fast)
         for period, callback in self._frame_listeners:
             if int(self.data.time / period) != int(t_before / period):
                 callback()

@@ -13,6 +13,8 @@ the numpy chain it replaces, kept there as the reference):
   ``np.unique`` numbers them, by a rank table over the grid instead of a sort; the caller
   falls back to the numpy chain when the grid is too large for a table
   (:data:`MAX_GRID_CELLS`).
+- :func:`hand_keep`: the mask of the points near the TCP, in front of the palm and outside the
+  gripper's boxes (:func:`ipbench.perception.segmentation.segment_in_hand`).
 
 No fast-math: no reassociation and no fused multiply-adds, so results do not depend on the
 processor's vector width. Compiled on first use and cached next to this file
@@ -26,7 +28,7 @@ import math
 import numba
 import numpy as np
 
-__all__ = ["MAX_GRID_CELLS", "box_members", "voxel_assign"]
+__all__ = ["MAX_GRID_CELLS", "box_members", "hand_keep", "voxel_assign"]
 
 MAX_GRID_CELLS = 1 << 23
 """Largest voxel grid (cells of the points' bounding box) ranked by a table (32 MiB of int32);
@@ -110,3 +112,28 @@ def voxel_assign(points: np.ndarray, size: float):
     if int(span[0]) * int(span[1]) * int(span[2]) > MAX_GRID_CELLS:
         return None
     return _ranked(points, keys, span)
+
+
+@_jit
+def hand_keep(
+    local: np.ndarray, radius: float, palm_front: float, centres: np.ndarray, halves: np.ndarray
+) -> np.ndarray:
+    """Mask (N,) of the points ``local`` (N, 3) in the TCP frame (m) within ``radius`` of the
+    TCP, in front of ``palm_front`` (z, m) and outside every box ``(centres[b], halves[b])``
+    ((B, 3) each, m): ``(np.linalg.norm(local, axis=1) <= radius) & (local[:, 2] >
+    palm_front) & ~np.all(np.abs(local - centres[b]) <= halves[b], axis=1)`` for every b (the
+    norm adds the squares in numpy's order, ``(x x + y y) + z z``)."""
+    n = local.shape[0]
+    keep = np.empty(n, np.bool_)
+    for i in range(n):
+        x, y, z = local[i, 0], local[i, 1], local[i, 2]
+        ok = math.sqrt((x * x + y * y) + z * z) <= radius and z > palm_front
+        for b in range(centres.shape[0]):
+            if (
+                abs(x - centres[b, 0]) <= halves[b, 0]
+                and abs(y - centres[b, 1]) <= halves[b, 1]
+                and abs(z - centres[b, 2]) <= halves[b, 2]
+            ):
+                ok = False
+        keep[i] = ok
+    return keep

@@ -25,6 +25,7 @@ from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 from scipy.spatial import ConvexHull, cKDTree
 
+from ._cloud_kernels import hand_keep
 from .cloud import Cloud, PerceptionError, crop_box, voxel_grid
 
 __all__ = [
@@ -328,9 +329,14 @@ def segment_in_hand(
         raise PerceptionError("valid: tcp_pose a finite 4x4 transform, 0 <= jaw_opening < 1 m")
     local = (cloud.points - pose[:3, 3]) @ pose[:3, :3]
     palm_front = gripper.palm_center[2] + gripper.palm_half[2] - gripper.tcp_offset
-    keep = (np.linalg.norm(local, axis=1) <= config.hand_radius) & (local[:, 2] > palm_front)
-    for centre, half in gripper.boxes(jaw_opening):
-        keep &= ~np.all(np.abs(local - centre) <= half + config.gripper_margin, axis=1)
+    boxes = gripper.boxes(jaw_opening)
+    keep = hand_keep(
+        np.ascontiguousarray(local),
+        float(config.hand_radius),
+        float(palm_front),
+        np.array([centre for centre, _ in boxes], dtype=np.float64).reshape(-1, 3),
+        np.array([half + config.gripper_margin for _, half in boxes], np.float64).reshape(-1, 3),
+    )
     reach = 0.5 * jaw_opening + config.grasp_reach
     hand = replace(config, cluster_eps=config.hand_cluster_eps)
     for segment in _cluster(cloud.subset(keep), hand, np.array([0.0, 0.0, 1.0]), None):

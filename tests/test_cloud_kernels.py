@@ -76,3 +76,28 @@ def test_crop_box_matches_the_numpy_mask_and_keeps_the_order():
     # a point exactly on the box face is inside, as with the numpy mask
     edge = Cloud(np.array([[1.1, -0.1, 0.8]]), np.zeros(1, np.int64), (1, 1), np.zeros(3))
     assert len(crop_box(edge, center, half)) == int(np.all(np.abs(edge.points - center) <= half))
+
+
+@pytest.mark.parametrize("opening", [0.0, 0.035, 0.09])
+def test_the_in_hand_mask_matches_the_numpy_chain_bit_for_bit(opening):
+    from ipbench.perception.segmentation import GripperGeometry, SegmentationConfig
+
+    gripper, config = GripperGeometry(), SegmentationConfig()
+    rng = np.random.default_rng(int(opening * 1000))
+    # points around the gripper (TCP frame, m), some exactly on a sphere of the hand radius
+    local = rng.uniform(-0.35, 0.35, (200_000, 3))
+    local[:1000] *= config.hand_radius / np.linalg.norm(local[:1000], axis=1)[:, None]
+    palm_front = gripper.palm_center[2] + gripper.palm_half[2] - gripper.tcp_offset
+    reference = (np.linalg.norm(local, axis=1) <= config.hand_radius) & (local[:, 2] > palm_front)
+    boxes = gripper.boxes(opening)
+    for centre, half in boxes:
+        reference &= ~np.all(np.abs(local - centre) <= half + config.gripper_margin, axis=1)
+    keep = _cloud_kernels.hand_keep(
+        local,
+        config.hand_radius,
+        palm_front,
+        np.array([c for c, _ in boxes]),
+        np.array([h + config.gripper_margin for _, h in boxes]),
+    )
+    assert 0 < keep.sum() < len(keep)
+    np.testing.assert_array_equal(keep, reference)
