@@ -60,15 +60,27 @@ def longest_first(tasks: Iterable[T], cost: Callable[[T], float]) -> list[T]:
 
 def single_thread_worker() -> None:
     """Limit this process to one thread per library (call first in a worker process, before
-    any rendering context exists: llvmpipe reads ``LP_NUM_THREADS`` when it starts)."""
-    for name in ("LP_NUM_THREADS", "OMP_NUM_THREADS"):
+    any rendering context exists: llvmpipe reads ``LP_NUM_THREADS`` when it starts).
+
+    The BLAS libraries already loaded (numpy's and scipy's OpenBLAS are, by the time a spawned
+    worker has unpickled its task) are limited by threadpoolctl for the rest of the process;
+    the variables cover those that load later. Before session 10 only llvmpipe, OpenMP,
+    OpenCV and torch were limited: numpy's OpenBLAS ran its second thread in every worker (a
+    third of a core each, spinning while it waited for work), which slowed every dataset part
+    rendered in a pool (episodes and trainings limited themselves)."""
+    for name in ("LP_NUM_THREADS", "OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
         os.environ[name] = "1"  # read when each library starts (torch: OMP_NUM_THREADS)
     import cv2
+    from threadpoolctl import threadpool_limits
 
+    _LIMITS.append(threadpool_limits(limits=1))  # kept: in effect until the process ends
     cv2.setNumThreads(1)
     torch = sys.modules.get("torch")  # already started: its pool is set, not its variable
     if torch is not None:
         torch.set_num_threads(1)
+
+
+_LIMITS: list = []
 
 
 def exit_with_parent(poll_s: float = 0.5) -> None:

@@ -155,12 +155,18 @@ def voxel_grid(points: np.ndarray, size: float) -> tuple[np.ndarray, np.ndarray]
     points = np.ascontiguousarray(points)
     ranked = voxel_assign(points, float(size))
     if ranked is None:  # a grid too large for the rank table: the same numbering by a sort
-        keys = np.floor(points / size).astype(np.int64)
-        keys -= keys.min(axis=0)
-        span = keys.max(axis=0) + 1
-        flat = (keys[:, 0] * span[1] + keys[:, 1]) * span[2] + keys[:, 2]
-        _, voxel_of, counts = np.unique(flat, return_inverse=True, return_counts=True)
-        sums = np.stack([np.bincount(voxel_of, points[:, i], len(counts)) for i in range(3)], 1)
-        return sums / counts[:, None], voxel_of.astype(np.int64)
+        return _voxel_grid_by_sort(points, size)
     voxel_of, counts, sums = ranked
     return sums / counts[:, None], voxel_of
+
+
+def _voxel_grid_by_sort(points: np.ndarray, size: float) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`voxel_grid` by numpy alone (voxels numbered by ``np.unique``'s sort): what the
+    kernel replaced, and what it is tested against."""
+    keys = np.floor(points / size).astype(np.int64)
+    keys -= keys.min(axis=0)
+    span = keys.max(axis=0) + 1
+    flat = (keys[:, 0] * span[1] + keys[:, 1]) * span[2] + keys[:, 2]
+    _, voxel_of, counts = np.unique(flat, return_inverse=True, return_counts=True)
+    sums = np.stack([np.bincount(voxel_of, points[:, i], len(counts)) for i in range(3)], 1)
+    return sums / counts[:, None], voxel_of.astype(np.int64)

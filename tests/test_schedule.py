@@ -27,16 +27,29 @@ def test_inspecting_policies_cost_more_than_random_and_unknown_ones_have_a_defau
     assert task_cost(10, "some-new-policy") == 15.0
 
 
-def test_single_thread_worker_limits_opencv_and_llvmpipe():
+def test_single_thread_worker_limits_opencv_llvmpipe_and_the_loaded_blas():
     code = (
-        "import os, cv2\n"
+        "import os, cv2, numpy, scipy.linalg\n"
+        "from threadpoolctl import threadpool_info\n"
         "from ipbench.eval.schedule import single_thread_worker\n"
         "cv2.setNumThreads(2)\n"
+        "blas = [p for p in threadpool_info() if p['user_api'] == 'blas']\n"
+        "before = max(p['num_threads'] for p in blas)\n"
         "single_thread_worker()\n"
-        "print(cv2.getNumThreads(), os.environ['LP_NUM_THREADS'])\n"
+        "after = max(p['num_threads'] for p in threadpool_info() if p['user_api'] == 'blas')\n"
+        "print(cv2.getNumThreads(), os.environ['LP_NUM_THREADS'], before, after, len(blas))\n"
     )
-    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
-    assert out.stdout.split() == ["1", "1"]
+    # a BLAS loaded before the call (numpy and scipy are, in a spawned worker) starts with as
+    # many threads as cores; the variables alone would not limit it any more
+    env = {k: v for k, v in os.environ.items() if not k.endswith("_NUM_THREADS")}
+    out = subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, check=True, env=env
+    )
+    cv_threads, lp_threads, before, after, n_blas = out.stdout.split()
+    assert (cv_threads, lp_threads, after) == ("1", "1", "1")
+    assert int(n_blas) >= 1
+    if (os.cpu_count() or 1) > 1:
+        assert int(before) > 1  # the limit did something
 
 
 def _alive(pid: int) -> bool:
