@@ -339,8 +339,9 @@ def missing_parts(
     cache_dir: Path, config: DatasetConfig, training_only: bool = True
 ) -> list[tuple[str, ObjectInstance]]:
     """The parts :func:`load_or_build` would render now: none when the whole cache file
-    exists; else those without a readable part file, every isolated part before every in-hand
-    one (what table-top models read comes first)."""
+    exists; else those without a part file (an unreadable one is re-rendered when
+    :func:`load_or_build` reads it), every isolated part before every in-hand one (what
+    table-top models read comes first)."""
     cache_dir = Path(cache_dir)
     if (cache_dir / f"views-{config.key()}.npz").exists():
         return []
