@@ -26,12 +26,14 @@ from __future__ import annotations
 
 import json
 from dataclasses import asdict, dataclass
+from pathlib import Path
 
 import numpy as np
 from scipy.optimize import minimize
 
 from ipbench.perception._gpc_grad import LaplaceObjective
 from ipbench.perception._gpc_laplace import (
+    LaplaceFactor,
     factorize,
     mc_softmax,
     predictive_latent,
@@ -39,6 +41,7 @@ from ipbench.perception._gpc_laplace import (
     softmax,
     sq_distances,
 )
+from ipbench.perception._gpc_posterior import factor_file, read_factor, state_digest, write_factor
 
 __all__ = ["GPCConfig", "GPCError", "MulticlassLaplaceGPC", "PREDICTIVES"]
 
@@ -166,6 +169,7 @@ class MulticlassLaplaceGPC:
     def __init__(self, config: GPCConfig = GPCConfig()) -> None:
         self.config = config
         self._X: np.ndarray | None = None
+        self._posterior_file: Path | None = None
 
     def _require_fit(self) -> None:
         if self._X is None:
@@ -275,15 +279,70 @@ class MulticlassLaplaceGPC:
         lq, g = self._objective(lt, grad=return_grad)
         return (lq, g) if return_grad else lq
 
-    def _set_posterior(self, log_theta: np.ndarray, a: np.ndarray) -> None:
-        """Predictive quantities at the mode ``f = K a`` (shared by ``fit`` and ``from_state``)."""
+    def _set_posterior(
+        self, log_theta: np.ndarray, a: np.ndarray, fac: LaplaceFactor | None = None
+    ) -> None:
+        """Predictive quantities at the mode ``f = K a`` (shared by ``fit`` and ``from_state``);
+        ``fac``: the factor at that mode if already known (see :meth:`map_posterior`)."""
         self.log_theta_ = np.asarray(log_theta, dtype=float)
         self.theta_ = (float(np.exp(self.log_theta_[0])), float(np.exp(self.log_theta_[1])))
         K = se_kernel(self._sqd, self.log_theta_)
         self._a = a
         self._Pi = softmax(K @ a)
-        self._fac = factorize(K, self._Pi)
+        self._fac = factorize(K, self._Pi) if fac is None else fac
+        self._posterior_file = None
         self._X = self._Xt
+
+    def _digest(self) -> str:
+        return state_digest(self._Xt, self._y, np.array(self.n_classes_), self._a, self.log_theta_)
+
+    def map_posterior(self, prefix: str | Path) -> Path:
+        """Keep the predictive factor (``C + 1`` matrices of n x n floats) in a file and
+        predict from it mapped read-only; returns the file, ``PREFIX-DIGEST.npy``.
+
+        ``DIGEST`` identifies this model's state, so a file already there holds exactly this
+        model's factor and is reused; otherwise it is written (atomically). Processes that
+        map one file share its pages, and a pickle of this model carries the path instead of
+        the matrices (unpickled where the file is missing, the factor is computed again).
+        Predictions are bit-identical to those of the unmapped model.
+        """
+        self._require_fit()
+        path = factor_file(prefix, self._digest())
+        n, n_cls = self._Y.shape
+        fac = read_factor(path, n, n_cls)
+        if fac is None:
+            write_factor(path, self._fac)
+            fac = read_factor(path, n, n_cls)
+            if fac is None:
+                raise GPCError(f"the posterior file {path} cannot be read back after writing")
+        self._fac, self._posterior_file = fac, path
+        return path
+
+    @property
+    def posterior_file(self) -> Path | None:
+        """The file the factor is mapped from (:meth:`map_posterior`), or None."""
+        return self._posterior_file
+
+    def __getstate__(self) -> dict:
+        state = self.__dict__.copy()
+        if state.get("_posterior_file") is not None:  # the file carries the large arrays
+            for key in ("_fac", "_sqd", "_objective"):
+                state.pop(key, None)
+        return state
+
+    def __setstate__(self, state: dict) -> None:
+        self.__dict__.update(state)
+        self.__dict__.setdefault("_posterior_file", None)
+        if "_fac" in state or self._X is None:
+            return
+        self._set_data(self._Xt, self._y, self.n_classes_)
+        self._objective.a = self._a
+        n, n_cls = self._Y.shape
+        fac = read_factor(self._posterior_file, n, n_cls)
+        if fac is None:  # the file is not here (another machine): compute the factor again
+            self._posterior_file = None
+            fac = factorize(se_kernel(self._sqd, self.log_theta_), self._Pi)
+        self._fac = fac
 
     def predict_latent(self, X: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Latent predictive mean ``(m, C)`` and covariance ``(m, C, C)`` (Algorithm 3.4).
@@ -351,8 +410,12 @@ class MulticlassLaplaceGPC:
         }
 
     @classmethod
-    def from_state(cls, state: dict[str, np.ndarray]) -> MulticlassLaplaceGPC:
-        """Rebuild a fitted model from :meth:`get_state` (or ``np.load`` of a saved one)."""
+    def from_state(
+        cls, state: dict[str, np.ndarray], posterior: str | Path | None = None
+    ) -> MulticlassLaplaceGPC:
+        """Rebuild a fitted model from :meth:`get_state` (or ``np.load`` of a saved one);
+        ``posterior``: a file prefix for :meth:`map_posterior` (the factor is read from
+        there instead of computed when that file exists, else computed and written)."""
         missing = {"X", "y", "n_classes", "log_theta", "a", "config_json"} - set(state)
         if missing:
             raise GPCError(f"state is missing keys {sorted(missing)}; pass get_state() output")
@@ -370,5 +433,14 @@ class MulticlassLaplaceGPC:
         model.initial_log_theta_ = np.asarray(state.get("initial_log_theta", lt), dtype=float)
         model.log_marginal_likelihood_value_ = float(state.get("log_q", np.nan))
         model.n_lbfgs_evals_ = 0
-        model._set_posterior(lt, a)
+        fac = None
+        if posterior is not None:
+            model.log_theta_, model._a = lt, a
+            fac = read_factor(factor_file(posterior, model._digest()), X.shape[0], n_cls)
+        model._set_posterior(lt, a, fac)
+        if posterior is not None:
+            try:
+                model.map_posterior(posterior)
+            except OSError:  # a read-only or full folder: predict from memory instead
+                pass
         return model

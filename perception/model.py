@@ -20,7 +20,13 @@ from ipbench.perception.cloud import PerceptionError
 from ipbench.perception.features import Codebook
 from ipbench.perception.gpc import MulticlassLaplaceGPC
 
-__all__ = ["MODEL_VERSION", "ModelFileError", "PerceptionModel", "load_or_train"]
+__all__ = [
+    "MODEL_VERSION",
+    "ModelFileError",
+    "PerceptionModel",
+    "load_or_train",
+    "posterior_prefix",
+]
 
 MODEL_VERSION = 2
 """Format version of the saved file; bumped when the layout changes."""
@@ -54,7 +60,8 @@ class PerceptionModel:
         return self.classifier.predict_proba(np.stack([self.codebook.encode(v) for v in views]))
 
     def save(self, path: str | Path) -> Path:
-        """Write atomically (a temporary file renamed into place)."""
+        """Write atomically (a temporary file renamed into place); a GP's predictive factor
+        goes to a file beside it (:func:`posterior_prefix`), which loading maps."""
         path = Path(path)
         path.parent.mkdir(parents=True, exist_ok=True)
         arrays = {f"{_CODEBOOK}{k}": v for k, v in self.codebook.to_arrays().items()}
@@ -71,6 +78,8 @@ class PerceptionModel:
             **arrays,
         )
         tmp.replace(path)
+        if isinstance(self.classifier, MulticlassLaplaceGPC):
+            _drop_stale_posteriors(path, self.classifier.map_posterior(posterior_prefix(path)))
         return path
 
     @classmethod
@@ -96,11 +105,29 @@ class PerceptionModel:
                 clf = pickle.loads(arrays[_PICKLE].tobytes())
             else:
                 clf = MulticlassLaplaceGPC.from_state(
-                    {k[len(_GP) :]: v for k, v in arrays.items() if k.startswith(_GP)}
+                    {k[len(_GP) :]: v for k, v in arrays.items() if k.startswith(_GP)},
+                    posterior=posterior_prefix(path),
                 )
+                _drop_stale_posteriors(Path(path), clf.posterior_file)
         except (KeyError, ValueError, pickle.UnpicklingError, EOFError) as err:
             raise ModelFileError(f"model file {path} is incomplete ({err})") from err
         return cls(tuple(str(c) for c in arrays["classes"]), codebook, clf, key)
+
+
+def posterior_prefix(path: str | Path) -> Path:
+    """Where the GP of the model file ``path`` keeps its predictive factor: files
+    ``STEM.posterior-DIGEST.npy`` beside it (see
+    :meth:`~ipbench.perception.gpc.MulticlassLaplaceGPC.map_posterior`)."""
+    path = Path(path)
+    return path.with_name(f"{path.stem}.posterior")
+
+
+def _drop_stale_posteriors(path: Path, keep: Path | None) -> None:
+    """Remove the factors that other models saved at ``path`` before left beside it."""
+    prefix = posterior_prefix(path)
+    for old in prefix.parent.glob(f"{prefix.name}-*.npy"):
+        if old != keep and not old.name.endswith(".tmp.npy"):
+            old.unlink(missing_ok=True)
 
 
 def load_or_train(
