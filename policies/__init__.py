@@ -44,12 +44,14 @@ POLICIES: tuple[str, ...] = (
     "oracle-scene",
 )
 """Policy names of the benchmark."""
-POLICY_VERSION = 2
+POLICY_VERSION = 3
 """Version of what the policies do with an observation (perception, grasp planning, decision
 rules), for every env version: part of an evaluation run's fingerprint and of its cached
 threshold evidence, so a run or a cache from other policy code is never mixed with this one's.
 2: grasp planning with the palm's volume, short objects held with the pads under their top,
-short round objects centred on their rim circle."""
+short round objects centred on their rim circle. 3: area inspection (``gp-ipm-area``) aims
+every command after the first at the object where the area view shows it (its grasp planned
+there), not at its old place on the table, which a failed re-pick from the area grasped."""
 READS_INFO: frozenset[str] = frozenset({"oracle", "oracle-scene"})
 """The policies that read ``info`` (ground truth): ``act(observation, info)``."""
 EVAL_CAMERAS: tuple[str, ...] = ("wrist",)

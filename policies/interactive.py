@@ -25,7 +25,7 @@ from ipbench.policies.base import (
     place_action,
 )
 from ipbench.policies.fusion import FUSIONS, fuse
-from ipbench.policies.grasping import GraspTarget
+from ipbench.policies.grasping import GraspTarget, grasp_target
 from ipbench.policies.perceiver import Perceiver
 
 __all__ = ["INSPECTIONS", "InteractiveConfig", "InteractiveSorter"]
@@ -74,6 +74,14 @@ class _Inspection:
     views: list[np.ndarray]
     labels: list[str]
     attempts: int = 0
+
+
+def _area_grasp(detection) -> GraspTarget:
+    """The grasp of the object the area view shows, where it lies now. The env re-picks an
+    object it set down in the area by itself (``position`` ignored), but after a failed
+    re-pick it grasps at ``position``: aiming there, not at the object's old place on the
+    table, keeps a neighbour that moved into that place from being taken instead."""
+    return grasp_target(detection.segment, np.zeros((0, 3)), 0, detection.viewpoint)
 
 
 class InteractiveSorter(SceneSorter):
@@ -130,9 +138,14 @@ class InteractiveSorter(SceneSorter):
         if detection is not None:
             ins.views.append(detection.probs)
             ins.labels.append(detection.label)
+            if self.config.inspection == "area":
+                ins.target = _area_grasp(detection)
         if len(ins.views) < self.config.n_views and ins.attempts < self.config.max_view_attempts:
             turn = math.radians(self.config.turn_deg)
-            turn_target = GraspTarget(ins.target.position, turn)
+            if self.config.inspection == "area":  # the jaws as planned on the area view
+                turn_target = GraspTarget(ins.target.position, turn, ins.target.opening)
+            else:  # held: position and opening are ignored
+                turn_target = GraspTarget(ins.target.position, turn)
             return place_action(
                 turn_target, ins.decision.first_label, INSPECTIONS[self.config.inspection]
             )

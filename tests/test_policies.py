@@ -206,6 +206,38 @@ def test_gp_ipm_gives_up_inspecting_when_the_hand_is_empty() -> None:
     assert policy.failures.count(np.array([0.8, 0.0])) == 1
 
 
+class _AreaPerceiver(_FakePerceiver):
+    """The object in the inspection area, seen where it lies there (x = 0.3 m)."""
+
+    def in_area(self, observation):
+        self.hand_calls += 1
+        return self._det(self.hand_probs.pop(0), 0.3, inspected=True)
+
+
+def test_gp_ipm_area_aims_at_the_object_in_the_area_not_its_old_table_place() -> None:
+    """After the first command (pick from the table at x = 0.8), every command aims at the
+    object in the area: when a re-pick from the area fails, the env grasps at ``position``,
+    and the old table place may hold a neighbour by then."""
+    unsure = [0.1, 0.1, 0.1, 0.6, 0.1]
+    views = [[0, 0.1, 0.8, 0.1, 0], [0, 0.1, 0.7, 0.2, 0], [0, 0.1, 0.2, 0.7, 0]]
+    perceiver = _AreaPerceiver([unsure], views)
+    policy = InteractiveSorter(perceiver, InteractiveConfig(threshold=0.8, inspection="area"))
+    policy.reset(0)
+    first = policy.act({"qpos": None})
+    assert first["command"] == 1 and first["position"][0] == pytest.approx(0.8, abs=0.03)
+    turns = [policy.act({"qpos": None}) for _ in range(2)]
+    final = policy.act({"qpos": None})
+    seen = perceiver._det(unsure, 0.3)
+    area_grasp = grasp_target(seen.segment, np.zeros((0, 3)), 0, seen.viewpoint)
+    for action in (*turns, final):
+        np.testing.assert_allclose(action["position"], area_grasp.position, atol=1e-6)
+        assert action["opening"][0] == pytest.approx(area_grasp.opening, abs=1e-6)
+    assert [a["command"] for a in turns] == [1, 1] and final["command"] == 0
+    assert turns[0]["yaw"][0] == pytest.approx(np.radians(30.0), abs=1e-6)  # the turn
+    assert final["yaw"][0] == pytest.approx(area_grasp.yaw, abs=1e-6)
+    assert final["bin"] == CLASSES.index("bowl") and perceiver.hand_calls == 3
+
+
 def test_unknown_policy_and_bad_settings_list_the_valid_options() -> None:
     with pytest.raises(PolicyError, match=", ".join(POLICIES)):
         make_policy("greedy", None)  # type: ignore[arg-type]
