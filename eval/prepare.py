@@ -8,7 +8,9 @@ part first, then the table-top models start training as soon as the last isolate
 saved while the other workers go on rendering the in-hand parts, and the in-hand models train
 when those are saved. The views and the models are those the stages would have produced one
 after the other (the same files, the same bytes): each training task runs
-:func:`ipbench.eval.perception.trained_models`, which reads the saved parts.
+:func:`ipbench.eval.perception.trained_models`, which reads the saved parts. Tasks that only
+read the table-top models (the sorting run's validation episodes, ``then``) come last in
+priority, so a worker runs them while the in-hand models train instead of idling.
 """
 
 from __future__ import annotations
@@ -42,6 +44,10 @@ def _train(cache: Path, config: PerceptionEvalConfig, classifiers, condition: st
     return "model", None
 
 
+def _then(fn, *args) -> tuple:
+    return "then", fn(*args)
+
+
 def _call(fn, *args):
     return fn(*args)
 
@@ -52,12 +58,18 @@ def prepare_perception(
     wanted: Sequence[tuple[str, tuple[str, ...]]],
     workers: int,
     progress: bool = False,
-) -> None:
+    then: Sequence[tuple] = (),
+) -> list:
     """Render the missing training parts and train the missing models of ``wanted``
     (``(condition, classifiers)`` pairs, conditions of
     :data:`~ipbench.eval.perception.CONDITIONS`) into ``cache``, in ``workers`` processes
     (see the module docstring). Models already cached are not touched; a corrupt one is
-    retrained later by :func:`~ipbench.eval.perception.trained_models`, which loads them."""
+    retrained later by :func:`~ipbench.eval.perception.trained_models`, which loads them.
+
+    ``then``: tasks ``(fn, *args)`` that read the table-top models (e.g. the validation
+    episodes that choose a threshold), run in the same pool once those are saved, after
+    everything else in priority: a worker runs them while the in-hand models train instead
+    of idling. Returns their results, in the order of ``then``."""
     cache = Path(cache)
     cache.mkdir(parents=True, exist_ok=True)
     unknown = [c for c, _ in wanted if c not in CONDITIONS]
@@ -74,11 +86,15 @@ def prepare_perception(
             )
         )
     ]
-    if not trainings:
-        return
+    if not trainings and not then:
+        return []
     dataset = config.dataset
     read = {CONDITIONS["scene"]} | {CONDITIONS[c] for c, _ in trainings}
-    parts = [p for p in missing_parts(cache, dataset, training_only=True) if p[0] in read]
+    parts = (
+        [p for p in missing_parts(cache, dataset, training_only=True) if p[0] in read]
+        if trainings
+        else []
+    )
     # isolated parts first; each training right after the last part it reads (or first)
     entries: list[tuple[float, tuple]] = [(j, ("part", j)) for j in range(len(parts))]
     for condition, classifiers in trainings:
@@ -101,7 +117,18 @@ def prepare_perception(
             tasks.append((_train, cache, config, classifiers, condition))
             after.append([index[j] for j in deps])
             jobs.append(None)
-    bar = tqdm(total=len(tasks), desc="views and models", unit="task", disable=not progress)
+    table_top = [k for k, job in enumerate(tasks) if job[0] is _train and job[4] == "scene"]
+    first_then = len(tasks)
+    for fn, *args in then:
+        tasks.append((_then, fn, *args))
+        after.append(table_top)
+        jobs.append(None)
+    desc = (
+        "views, models, validation"
+        if then and trainings
+        else ("views and models" if trainings else "validation episodes")
+    )
+    bar = tqdm(total=len(tasks), desc=desc, unit="task", disable=not progress)
     results = run_tasks(
         _call,
         tasks,
@@ -110,9 +137,13 @@ def prepare_perception(
         what="preparation task",
         after=after,
     )
-    for i, (what, views) in results:
+    out: list = [None] * len(then)
+    for i, (what, value) in results:
         if what == "part":
             kind, inst = jobs[i]
-            save_part(cache, dataset, kind, inst, views)
+            save_part(cache, dataset, kind, inst, value)
+        elif what == "then":
+            out[i - first_then] = value
         bar.update()
     bar.close()
+    return out

@@ -191,6 +191,40 @@ class Task:
 
 
 # -- models and thresholds ---------------------------------------------------------------------
+def _validation_tasks(config: SortingEvalConfig) -> list[Task]:
+    """Random sorting on the validation seeds of both standard scenes (whichever are
+    evaluated: the thresholds stay those released)."""
+    return [
+        Task(scene, "random", seed)
+        for scene in SCENES
+        if scene in STANDARD_SCENES
+        for seed in config.validation_seeds
+    ]
+
+
+def _under_test(model, config: SortingEvalConfig) -> PolicyModels:
+    """The models of a validation episode: ``model`` on the table, nothing else."""
+    area = tuple(float(v) for v in workcell_places().inspection_area.center)
+    seg, feat = config.perception.dataset.segmentation, config.perception.dataset.features
+    return PolicyModels(
+        gp=model, inspection_area=area, thresholds={}, segmentation=seg, features=feat
+    )
+
+
+def _evidence_of(records, tasks: list[Task]) -> tuple[np.ndarray, np.ndarray]:
+    """Confidence and correctness of every decision with ground truth in ``records`` (the
+    episodes of ``tasks``), in task order whatever order the workers finished in: the same
+    evidence file every run."""
+    order = {(t.scene, t.seed): i for i, t in enumerate(tasks)}
+    conf, correct = [], []
+    for record in sorted(records, key=lambda r: order[r["scene"], r["seed"]]):
+        for d in record["decisions"]:
+            if d["true_category"] is not None:
+                conf.append(d["first_confidence"])
+                correct.append(d["first_label"] == d["true_category"])
+    return np.array(conf), np.array(correct, bool)
+
+
 def _validation_evidence(
     model, config: SortingEvalConfig, progress: bool = False
 ) -> tuple[np.ndarray, np.ndarray]:
@@ -200,34 +234,40 @@ def _validation_evidence(
     Every view a sorter decides on counts, not only an episode's first one: after removals the
     table holds disturbed, toppled leftovers, where labels of the same confidence are right
     less often, so thresholds chosen on first views alone let many wrong later labels
-    through."""
-    area = tuple(float(v) for v in workcell_places().inspection_area.center)
-    seg, feat = config.perception.dataset.segmentation, config.perception.dataset.features
-    under_test = PolicyModels(
-        gp=model, inspection_area=area, thresholds={}, segmentation=seg, features=feat
-    )
-    # the standard scenes only, whichever are evaluated: the thresholds stay those released
-    tasks = [
-        Task(scene, "random", seed)
-        for scene in SCENES
-        if scene in STANDARD_SCENES
-        for seed in config.validation_seeds
-    ]
-    conf, correct = [], []
-    records = _executor(config)(tasks, under_test, config)
+    through. (From an empty cache the episodes run in the preparation pool instead:
+    :func:`_validation_episode`.)"""
+    tasks = _validation_tasks(config)
+    records = _executor(config)(tasks, _under_test(model, config), config)
     bar = tqdm(records, total=len(tasks), desc="validation episodes", disable=not progress)
-    # in task order, whatever order the workers finished in: the same evidence file every run
-    order = {(t.scene, t.seed): i for i, t in enumerate(tasks)}
-    for record in sorted(bar, key=lambda r: order[r["scene"], r["seed"]]):
-        for d in record["decisions"]:
-            if d["true_category"] is not None:
-                conf.append(d["first_confidence"])
-                correct.append(d["first_label"] == d["true_category"])
-    return np.array(conf), np.array(correct, bool)
+    return _evidence_of(list(bar), tasks)
+
+
+_VALIDATION_MODELS: dict = {}  # in a preparation worker: the last models it validated
+
+
+def _validation_episode(cache: Path, classifier: str, config: SortingEvalConfig, task: Task):
+    """One validation episode in a worker of :func:`ipbench.eval.prepare.prepare_perception`,
+    with the table-top ``classifier`` model read from ``cache`` (loaded once per worker;
+    mapped, so it costs a fraction of a second)."""
+    key = (str(cache), classifier, config.perception)
+    if key not in _VALIDATION_MODELS:
+        model = trained_models(
+            cache, config.perception, CATEGORIES, (classifier,), workers=1, progress=False
+        )[classifier]
+        _VALIDATION_MODELS.clear()
+        _VALIDATION_MODELS[key] = _under_test(model, config)
+    return run_episode(task, _VALIDATION_MODELS[key], config)
+
+
+@dataclass(frozen=True)
+class _Keyed:
+    """A model known by its key only (what :func:`_validation_key` reads)."""
+
+    key: str
 
 
 def _validation_key(model, config: SortingEvalConfig) -> list:
-    """What the validation evidence depends on."""
+    """What the validation evidence of ``model`` (anything with its ``key``) depends on."""
     return [
         model.key,
         list(config.validation_seeds),
@@ -249,10 +289,16 @@ def _write_json(path: Path, record: dict) -> None:
 
 
 def _evidence(
-    cache: Path, model, classifier: str, config: SortingEvalConfig, progress: bool
+    cache: Path,
+    model,
+    classifier: str,
+    config: SortingEvalConfig,
+    progress: bool,
+    records: list | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """:func:`_validation_evidence`, cached: it does not depend on the target precision, so a
-    sweep over targets runs the validation episodes once."""
+    sweep over targets runs the validation episodes once; ``records``: those episodes, run
+    already (in the preparation pool)."""
     path = _cache_path(cache, "evidence", classifier, _validation_key(model, config))
     if path.exists():
         try:
@@ -263,17 +309,36 @@ def _evidence(
             print(f"ipbench: evidence file {path} is malformed; gathering it again")
         except (ValueError, KeyError, TypeError) as err:
             print(f"ipbench: evidence file {path} is corrupt ({err}); gathering it again")
-    conf, correct = _validation_evidence(model, config, progress)
+    if records is not None:
+        conf, correct = _evidence_of(records, _validation_tasks(config))
+    else:
+        conf, correct = _validation_evidence(model, config, progress)
     _write_json(path, {"confidence": conf.tolist(), "correct": correct.tolist()})
     return conf, correct
 
 
-def _threshold(
-    cache: Path, model, classifier: str, config: SortingEvalConfig, progress: bool = False
-) -> ThresholdChoice:
-    """The threshold chosen for ``model`` on the validation episodes, saved in ``cache``."""
+def _threshold_path(cache: Path, model, classifier: str, config: SortingEvalConfig) -> Path:
     key = [*_validation_key(model, config), config.target_precision]
-    path = _cache_path(cache, "threshold", classifier, key)
+    return _cache_path(cache, "threshold", classifier, key)
+
+
+def _needs_validation(cache: Path, model, classifier: str, config: SortingEvalConfig) -> bool:
+    """Neither the threshold nor the evidence of ``model`` is cached."""
+    evidence = _cache_path(cache, "evidence", classifier, _validation_key(model, config))
+    return not (_threshold_path(cache, model, classifier, config).exists() or evidence.exists())
+
+
+def _threshold(
+    cache: Path,
+    model,
+    classifier: str,
+    config: SortingEvalConfig,
+    progress: bool = False,
+    records: list | None = None,
+) -> ThresholdChoice:
+    """The threshold chosen for ``model`` on the validation episodes (``records``: run
+    already), saved in ``cache``."""
+    path = _threshold_path(cache, model, classifier, config)
     if path.exists():
         try:
             d = json.loads(path.read_text())
@@ -287,7 +352,7 @@ def _threshold(
             )
         except (ValueError, KeyError, TypeError) as err:
             print(f"ipbench: threshold file {path} is corrupt ({err}); choosing again")
-    conf, correct = _evidence(cache, model, classifier, config, progress)
+    conf, correct = _evidence(cache, model, classifier, config, progress, records)
     choice = choose_threshold(conf, correct, config.target_precision)
     _write_json(
         path,
@@ -315,14 +380,30 @@ def prepare_models(
             {c for p, (c, mode) in INTERACTIVE.items() if p in config.policies and mode == "hand"}
         )
     )
-    # the views and the models from an empty cache in one pool (ipbench.eval.prepare)
-    prepare_perception(
+    needed = sorted({INTERACTIVE[p][0] for p in config.policies if p in INTERACTIVE})
+    # validation episodes still to run go into the same pool (not with Ray: they run there)
+    pending = [
+        c
+        for c in needed
+        if config.backend == "process"
+        and _needs_validation(
+            cache, _Keyed(model_key(config.perception, CATEGORIES, c, "scene")), c, config
+        )
+    ]
+    validation = _validation_tasks(config)
+    # the views, the models and the validation episodes from an empty cache in one pool
+    # (ipbench.eval.prepare): the episodes run while the in-hand models train
+    ran = prepare_perception(
         cache,
         config.perception,
         (("scene", wanted), ("in_hand", in_hand)),
         config.workers,
         progress,
+        then=[(_validation_episode, cache, c, config, t) for c in pending for t in validation],
     )
+    records = {
+        c: ran[k * len(validation) : (k + 1) * len(validation)] for k, c in enumerate(pending)
+    }
     with threadpool_limits(1):
         models = trained_models(
             cache, config.perception, CATEGORIES, wanted, workers=config.workers
@@ -330,8 +411,9 @@ def prepare_models(
         hand = trained_models(
             cache, config.perception, CATEGORIES, in_hand, "in_hand", workers=config.workers
         )
-        needed = {INTERACTIVE[p][0] for p in config.policies if p in INTERACTIVE}
-        choices = {c: _threshold(cache, models[c], c, config, progress) for c in sorted(needed)}
+        choices = {
+            c: _threshold(cache, models[c], c, config, progress, records.get(c)) for c in needed
+        }
     policy_models = PolicyModels(
         gp=models["gp"],
         svm=models.get("svm"),

@@ -58,6 +58,47 @@ def test_tables_top_models_train_before_the_in_hand_views_render(tmp_path, monke
     assert ran == []
 
 
+def test_follow_up_tasks_run_after_the_table_top_models_and_return_in_order(tmp_path, monkeypatch):
+    ran = []
+    views = ViewSet.from_views([np.zeros((3, 33), np.float32)], [0], ["x"], [True], "isolated")
+
+    def fake_render(kind, inst, config):
+        ran.append(kind)
+        return "part", views
+
+    def fake_train(cache, config, classifiers, condition):
+        ran.append(f"train {condition}")
+        return "model", None
+
+    def episode(name):
+        ran.append(name)
+        return name.upper()
+
+    monkeypatch.setattr(prepare, "_render", fake_render)
+    monkeypatch.setattr(prepare, "_train", fake_train)
+    wanted = (("scene", ("gp",)), ("in_hand", ("gp",)))
+    out = prepare.prepare_perception(
+        tmp_path, CONFIG, wanted, workers=1, then=[(episode, "a"), (episode, "b")]
+    )
+    n = sum(i.known for i in TINY.chosen_instances())
+    # last in priority: in one process after everything (in a pool, while in-hand trains)
+    assert ran == (
+        ["isolated"] * n + ["train scene"] + ["in_hand"] * n + ["train in_hand"] + ["a", "b"]
+    )
+    assert out == ["A", "B"]
+    ran.clear()  # everything cached: the follow-ups still run, and alone
+    for condition in ("scene", "in_hand"):
+        model_path(tmp_path, model_key(CONFIG, CATEGORIES, "gp", condition)).write_bytes(b"x")
+    assert prepare.prepare_perception(tmp_path, CONFIG, wanted, 1, then=[(episode, "c")]) == ["C"]
+    assert ran == ["c"]
+    assert prepare.prepare_perception(tmp_path, CONFIG, wanted, 1) == []
+
+
+def scene_model_saved(cache, key: str) -> bool:
+    """A follow-up task (module level: it runs in a spawned worker)."""
+    return model_path(cache, key).exists()
+
+
 def test_an_unknown_condition_is_a_clear_error(tmp_path):
     with pytest.raises(ValueError, match="valid: scene, in_hand"):
         prepare.prepare_perception(tmp_path, CONFIG, (("table", ("gp",)),), 1)
@@ -66,7 +107,10 @@ def test_an_unknown_condition_is_a_clear_error(tmp_path):
 def test_models_prepared_in_one_pool_equal_those_of_one_stage_after_the_other(tmp_path):
     pooled, staged = tmp_path / "pooled", tmp_path / "staged"
     wanted = (("scene", ("gp",)), ("in_hand", ("gp",)))
-    prepare.prepare_perception(pooled, CONFIG, wanted, workers=2)
+    key = model_key(CONFIG, CATEGORIES, "gp", "scene")
+    # a follow-up task sees the table-top model it depends on, even in another worker
+    then = [(scene_model_saved, pooled, key)] * 2
+    assert prepare.prepare_perception(pooled, CONFIG, wanted, workers=2, then=then) == [True] * 2
     parts = next(pooled.glob("parts-*"))
     shutil.copytree(parts, staged / parts.name)  # the same views, then the models in turn
     for condition, classifiers in wanted:
@@ -77,3 +121,38 @@ def test_models_prepared_in_one_pool_equal_those_of_one_stage_after_the_other(tm
             assert sorted(a.files) == sorted(b.files)
             for k in a.files:
                 np.testing.assert_array_equal(a[k], b[k], err_msg=f"{condition}: {k}")
+
+
+def test_validation_episodes_in_the_pool_give_the_evidence_of_a_pool_of_their_own(
+    tmp_path, monkeypatch
+):
+    """From an empty cache the threshold's validation episodes run in the preparation pool
+    (:func:`ipbench.eval.sorting._validation_episode`); the evidence is what the separate
+    validation pool gathers with the same model."""
+    import json
+
+    from ipbench.envs.layout import SCENES
+    from ipbench.eval import sorting
+
+    monkeypatch.setattr(sorting, "SCENES", {"uncluttered": SCENES["uncluttered"]})
+    config = sorting.SortingEvalConfig(
+        scenes=("uncluttered",),
+        policies=("random", "gp-ipm"),
+        seeds=(0,),
+        validation_seeds=(1000,),
+        steps_per_object=1,
+        perception=CONFIG,
+    )
+    separate = sorting._validation_evidence
+
+    def refuse(*args, **kwargs):
+        raise AssertionError("the validation episodes ran in a pool of their own")
+
+    monkeypatch.setattr(sorting, "_validation_evidence", refuse)
+    models, choices = sorting.prepare_models(tmp_path, config)
+    (evidence,) = tmp_path.glob("evidence-gp-*.json")
+    pooled = json.loads(evidence.read_text())
+    conf, correct = separate(models.gp, config)
+    assert len(conf) > 0
+    assert pooled == {"confidence": conf.tolist(), "correct": correct.tolist()}
+    assert choices["gp"].n == len(conf)
