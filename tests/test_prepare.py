@@ -25,8 +25,9 @@ TINY = DatasetConfig(
 CONFIG = PerceptionEvalConfig(dataset=TINY, codebook_size=16, codebook_samples=2_000)
 
 
-def test_tables_top_models_train_before_the_in_hand_views_render(tmp_path, monkeypatch):
-    ran = []
+def _fake_work(monkeypatch) -> list[str]:
+    """Renders and trainings that only record what ran (in this process: ``workers=1``)."""
+    ran: list[str] = []
     views = ViewSet.from_views([np.zeros((3, 33), np.float32)], [0], ["x"], [True], "isolated")
 
     def fake_render(kind, inst, config):
@@ -39,6 +40,11 @@ def test_tables_top_models_train_before_the_in_hand_views_render(tmp_path, monke
 
     monkeypatch.setattr(prepare, "_render", fake_render)
     monkeypatch.setattr(prepare, "_train", fake_train)
+    return ran
+
+
+def test_tables_top_models_train_before_the_in_hand_views_render(tmp_path, monkeypatch):
+    ran = _fake_work(monkeypatch)
     prepare.prepare_perception(
         tmp_path, CONFIG, (("scene", ("gp",)), ("in_hand", ("gp",))), workers=1
     )
@@ -59,23 +65,12 @@ def test_tables_top_models_train_before_the_in_hand_views_render(tmp_path, monke
 
 
 def test_follow_up_tasks_run_after_the_table_top_models_and_return_in_order(tmp_path, monkeypatch):
-    ran = []
-    views = ViewSet.from_views([np.zeros((3, 33), np.float32)], [0], ["x"], [True], "isolated")
-
-    def fake_render(kind, inst, config):
-        ran.append(kind)
-        return "part", views
-
-    def fake_train(cache, config, classifiers, condition):
-        ran.append(f"train {condition}")
-        return "model", None
+    ran = _fake_work(monkeypatch)
 
     def episode(name):
         ran.append(name)
         return name.upper()
 
-    monkeypatch.setattr(prepare, "_render", fake_render)
-    monkeypatch.setattr(prepare, "_train", fake_train)
     wanted = (("scene", ("gp",)), ("in_hand", ("gp",)))
     out = prepare.prepare_perception(
         tmp_path, CONFIG, wanted, workers=1, then=[(episode, "a"), (episode, "b")]
