@@ -33,7 +33,6 @@ from scipy.optimize import minimize
 
 from ipbench.perception._gpc_grad import LaplaceObjective
 from ipbench.perception._gpc_laplace import (
-    LaplaceFactor,
     factorize,
     mc_softmax,
     predictive_latent,
@@ -280,18 +279,30 @@ class MulticlassLaplaceGPC:
         return (lq, g) if return_grad else lq
 
     def _set_posterior(
-        self, log_theta: np.ndarray, a: np.ndarray, fac: LaplaceFactor | None = None
+        self, log_theta: np.ndarray, a: np.ndarray, posterior: str | Path | None = None
     ) -> None:
         """Predictive quantities at the mode ``f = K a`` (shared by ``fit`` and ``from_state``);
-        ``fac``: the factor at that mode if already known (see :meth:`map_posterior`)."""
+        ``posterior``: a file prefix of :meth:`map_posterior`, read instead of computing the
+        factor when this model's file is there (else computed, then written there)."""
         self.log_theta_ = np.asarray(log_theta, dtype=float)
         self.theta_ = (float(np.exp(self.log_theta_[0])), float(np.exp(self.log_theta_[1])))
         K = se_kernel(self._sqd, self.log_theta_)
         self._a = a
         self._Pi = softmax(K @ a)
-        self._fac = factorize(K, self._Pi) if fac is None else fac
         self._posterior_file = None
         self._X = self._Xt
+        if posterior is not None:
+            path = factor_file(posterior, self._digest())
+            fac = read_factor(path, *self._Y.shape)
+            if fac is not None:
+                self._fac, self._posterior_file = fac, path
+                return
+        self._fac = factorize(K, self._Pi)
+        if posterior is not None:
+            try:
+                self.map_posterior(posterior)
+            except OSError:  # a read-only or full folder: predict from memory instead
+                pass
 
     def _digest(self) -> str:
         return state_digest(self._Xt, self._y, np.array(self.n_classes_), self._a, self.log_theta_)
@@ -433,14 +444,5 @@ class MulticlassLaplaceGPC:
         model.initial_log_theta_ = np.asarray(state.get("initial_log_theta", lt), dtype=float)
         model.log_marginal_likelihood_value_ = float(state.get("log_q", np.nan))
         model.n_lbfgs_evals_ = 0
-        fac = None
-        if posterior is not None:
-            model.log_theta_, model._a = lt, a
-            fac = read_factor(factor_file(posterior, model._digest()), X.shape[0], n_cls)
-        model._set_posterior(lt, a, fac)
-        if posterior is not None:
-            try:
-                model.map_posterior(posterior)
-            except OSError:  # a read-only or full folder: predict from memory instead
-                pass
+        model._set_posterior(lt, a, posterior)
         return model
