@@ -21,7 +21,6 @@ from __future__ import annotations
 
 import hashlib
 import json
-import os
 import time
 from collections import Counter
 from collections.abc import Callable, Iterator
@@ -37,17 +36,15 @@ import ipbench.envs  # noqa: F401  (registers the environments)
 from ipbench.assets.objects import CATEGORIES
 from ipbench.envs.layout import SCENES, STANDARD_SCENES
 from ipbench.envs.sorting import workcell_places
-from ipbench.eval.files import ensure_writable
+from ipbench.eval.episodes import BACKENDS, EpisodeLog, check_out, run_episodes
 from ipbench.eval.perception import PerceptionEvalConfig, model_key, trained_models
 from ipbench.eval.prepare import prepare_perception
-from ipbench.eval.schedule import longest_first, pool_worker, single_thread_worker, task_cost
+from ipbench.eval.schedule import longest_first, task_cost
 from ipbench.eval.sorting_report import (
     ThresholdSweep,
-    load_episodes,
     loss_decomposition,
     write_report,
 )
-from ipbench.eval.workers import run_tasks
 from ipbench.policies import (
     EVAL_CAMERAS,
     FUSIONS,
@@ -73,7 +70,6 @@ __all__ = [
     "run_sorting_eval",
 ]
 
-BACKENDS: tuple[str, ...] = ("process", "ray")
 EPISODE_VERSION = 2
 """Version of the episode record; part of the run fingerprint."""
 _VALIDATION_PROTOCOL = 2
@@ -528,126 +524,38 @@ def _run_episode(task: Task, models: PolicyModels, config: SortingEvalConfig) ->
 
 
 # -- executors ------------------------------------------------------------------------------------
-_WORKER: dict = {}
-
-
-def _init_worker(models: PolicyModels, config: SortingEvalConfig) -> None:
-    pool_worker()  # W workers on W cores, gone with the main (ipbench.eval.schedule)
-    _WORKER["models"], _WORKER["config"] = models, config
-
-
-def _worker_episode(task: Task) -> dict:
-    return run_episode(task, _WORKER["models"], _WORKER["config"])
-
-
-def _single_threaded_episode(task: Task, models: PolicyModels, config: SortingEvalConfig):
-    single_thread_worker()  # a Ray worker: one core, one thread per library
-    return run_episode(task, models, config)
-
-
-def _run_serial(tasks, models, config) -> Iterator[dict]:
-    for task in tasks:
-        yield run_episode(task, models, config)
-
-
-def _run_processes(tasks, models, config) -> Iterator[dict]:
-    ordered = _longest_first(tasks)
-    episodes = run_tasks(
-        _worker_episode,
-        [(t,) for t in ordered],
-        config.workers,
-        _init_worker,
-        (models, config),
-        what="episode",
-    )
-    for _, record in episodes:
-        yield record
-
-
-def _run_ray(tasks, models, config) -> Iterator[dict]:
-    try:
-        import ray
-    except ImportError as err:
-        raise SortingEvalError(
-            "--backend ray needs Ray: pip install 'ipbench[ray]' (or use --backend process)"
-        ) from err
-    started = not ray.is_initialized()
-    if started:
-        kwargs = (
-            {"address": config.ray_address} if config.ray_address else {"num_cpus": config.workers}
-        )
-        ray.init(
-            **kwargs,
-            include_dashboard=False,
-            logging_level="ERROR",
-            runtime_env={"env_vars": {"MUJOCO_GL": os.environ.get("MUJOCO_GL", "egl")}},
-        )
-    try:
-        remote = ray.remote(num_cpus=1)(_single_threaded_episode)
-        models_ref, config_ref = ray.put(models), ray.put(config)
-        pending = [remote.remote(t, models_ref, config_ref) for t in _longest_first(tasks)]
-        while pending:
-            done, pending = ray.wait(pending, num_returns=1)
-            yield ray.get(done[0])
-    finally:
-        if started:
-            ray.shutdown()
+def _cost(task: Task) -> float:
+    """Expected relative wall time of a task (longest first, :mod:`ipbench.eval.schedule`)."""
+    return task_cost(SCENES[task.scene].n_objects, task.policy)
 
 
 def _longest_first(tasks: list[Task]) -> list[Task]:
     """The tasks, longest expected episode first (:mod:`ipbench.eval.schedule`)."""
-    return longest_first(tasks, lambda t: task_cost(SCENES[t.scene].n_objects, t.policy))
+    return longest_first(tasks, _cost)
 
 
 def _executor(config: SortingEvalConfig) -> Callable:
-    if config.backend == "ray":
-        return _run_ray
-    return _run_serial if config.workers == 1 else _run_processes
+    """``run(tasks, models, config)`` yielding records: the shared executors
+    (:func:`ipbench.eval.episodes.run_episodes`) with this configuration's workers and backend."""
+
+    def run(tasks, models: PolicyModels, config: SortingEvalConfig) -> Iterator[dict]:
+        return run_episodes(
+            run_episode,
+            tasks,
+            (models, config),
+            workers=config.workers,
+            backend=config.backend,
+            ray_address=config.ray_address,
+            cost=_cost,
+            error=SortingEvalError,
+        )
+
+    return run
 
 
 # -- the evaluation -------------------------------------------------------------------------------
-def _check_out(out: Path, fingerprint: str) -> None:
-    try:
-        ensure_writable(out)
-    except OSError as err:
-        raise SortingEvalError(
-            f"cannot write to the output folder {out} ({err.strerror}); pass a writable --out"
-        ) from err
-    run = out / "run.json"
-    if run.exists():
-        try:
-            previous = json.loads(run.read_text()).get("fingerprint")
-        except (ValueError, AttributeError):
-            previous = None
-        if previous != fingerprint and (out / "episodes.jsonl").exists():
-            raise SortingEvalError(
-                f"{out} holds episodes of another configuration (fingerprint {previous}, this "
-                f"run {fingerprint}); pass another --out, or delete {out / 'episodes.jsonl'}"
-            )
-
-
-def _drop_partial_line(log: Path) -> None:
-    """Cut a record left half-written by an interrupted run (it is run again)."""
-    if not log.exists():
-        return
-    data = log.read_bytes()
-    if data and not data.endswith(b"\n"):
-        cut = data.rfind(b"\n") + 1
-        print(f"ipbench: {log}: dropping an unfinished last record (it will be run again)")
-        with log.open("r+b") as f:
-            f.truncate(cut)
-
-
-def _sort_log(log: Path) -> None:
-    """Rewrite the episode log in (scene, policy, seed) order, atomically: workers finish in
-    any order, the log of a finished run does not depend on it."""
-    if not log.exists():
-        return
-    records = load_episodes(log)
-    records.sort(key=lambda e: (e["scene"], e["policy"], int(e["seed"])))
-    tmp = log.with_suffix(".jsonl.tmp")
-    tmp.write_text("".join(json.dumps(e) + "\n" for e in records))
-    os.replace(tmp, log)
+def _record_key(record: dict) -> tuple[str, str, int]:
+    return (record["scene"], record["policy"], int(record["seed"]))
 
 
 def run_sorting_eval(
@@ -661,7 +569,7 @@ def run_sorting_eval(
         for name in ("gp", "svm", "gp_hand", "svm_hand")
     }
     fingerprint = config.fingerprint(json.dumps([keys, models.thresholds], sort_keys=True))
-    _check_out(out, fingerprint)
+    check_out(out, fingerprint, SortingEvalError)
     (out / "run.json").write_text(
         json.dumps(
             {
@@ -676,13 +584,8 @@ def run_sorting_eval(
             default=str,
         )
     )
-    log = out / "episodes.jsonl"
-    _drop_partial_line(log)
-    done = (
-        {(e["scene"], e["policy"], e["seed"]) for e in load_episodes(log)}
-        if log.exists()
-        else set()
-    )
+    log = EpisodeLog(out / "episodes.jsonl", _record_key)
+    done = log.done()
     first_seed = min(config.seeds)
     tasks = [
         Task(
@@ -699,21 +602,18 @@ def run_sorting_eval(
         if (scene, policy, int(seed)) not in done
     ]
     if done:
-        print(f"ipbench: resuming: {len(done)} episodes already in {log}, {len(tasks)} to run")
-    with (
-        log.open("a") as f,
-        tqdm(total=len(tasks), desc="episodes", unit="ep", disable=not progress) as bar,
-    ):
-        for record in _executor(config)(tasks, models, config):
-            f.write(json.dumps(record) + "\n")
-            f.flush()
-            os.fsync(f.fileno())
+        print(f"ipbench: resuming: {len(done)} episodes already in {log.path}, {len(tasks)} to run")
+    with tqdm(total=len(tasks), desc="episodes", unit="ep", disable=not progress) as bar:
+
+        def advance(record: dict) -> None:
             bar.set_postfix_str(f"{record['scene']} {record['policy']} {record['accuracy']:.0%}")
             bar.update()
-    _sort_log(log)
+
+        log.append(_executor(config)(tasks, models, config), each=advance)
+    log.sort()
     episodes = [
         e
-        for e in load_episodes(log)
+        for e in log.records()
         if e["scene"] in config.scenes
         and e["policy"] in config.policies
         and e["seed"] in config.seeds

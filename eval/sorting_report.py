@@ -19,7 +19,6 @@ from __future__ import annotations
 
 import json
 import math
-import warnings
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -28,6 +27,7 @@ import numpy as np
 from matplotlib.figure import Figure
 
 from ipbench.assets.objects.catalog import CATEGORIES
+from ipbench.eval.episodes import load_episodes  # re-exported: the sorting log's reader
 
 __all__ = [
     "LOSSES",
@@ -841,42 +841,3 @@ def write_report(
     markdown = out / "sorting.md"
     markdown.write_text("\n".join(lines).rstrip("\n") + "\n")
     return ReportPaths(markdown, summary_path, tuple(plots))
-
-
-# --------------------------------------------------------------------------- loading
-
-
-def load_episodes(path: Path) -> list[dict]:
-    """Episode records of a JSONL file (one JSON object per line, blank lines ignored).
-
-    A last line that does not parse is taken for a record cut short by an interrupted
-    writer: it is skipped with a warning.
-
-    Raises
-    ------
-    ValueError
-        On a line before the last that is not a JSON object, naming the file and line.
-    """
-    path = Path(path)
-    numbered = [
-        (i, line) for i, line in enumerate(path.read_text("utf-8").splitlines(), 1) if line.strip()
-    ]
-    records = []
-    for k, (lineno, line) in enumerate(numbered):
-        try:
-            record = json.loads(line)
-        except json.JSONDecodeError as err:
-            if k == len(numbered) - 1:
-                warnings.warn(
-                    f"{path}:{lineno}: skipping a truncated last line (interrupted writer?): "
-                    f"{err.msg}",
-                    stacklevel=2,
-                )
-                break
-            raise ValueError(f"{path}:{lineno}: not valid JSON ({err.msg})") from err
-        if not isinstance(record, dict):
-            raise ValueError(
-                f"{path}:{lineno}: expected a JSON object, got {type(record).__name__}"
-            )
-        records.append(record)
-    return records
