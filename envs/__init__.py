@@ -15,8 +15,13 @@ manipulation (fully opened jaws, blind descents; see :data:`ipbench.envs.sorting
 ids, the benchmark's (:data:`LATEST`, released with issue 12's headline measurement), add the
 v2 object catalogue and structured-light depth (:data:`ipbench.envs.sorting.V2`), faster
 physics, the ``pick`` command, and a third scene, ``"pile"`` (twenty objects piled, some on
-others; ``ipbench/SortingPile-v2`` or ``scene="pile"``), which v0/v1 ids refuse. No id is
-under development now (:data:`UNDER_DEVELOPMENT`).
+others; ``ipbench/SortingPile-v2`` or ``scene="pile"``), which v0/v1 ids refuse.
+
+``ipbench/Exploration-v0`` (:data:`EXPLORATION_IDS`, thesis ch. 3) is the second task family:
+the stereo head explores a table scene and reports the objects it recognises
+(:mod:`ipbench.envs.exploration`; ``gym.make("ipbench/Exploration-v0", scene="complex")``).
+It is under development (:data:`UNDER_DEVELOPMENT`): its behaviour may still change.
+:data:`ALL_IDS` lists every registered ipbench id.
 """
 
 import warnings
@@ -25,7 +30,16 @@ from gymnasium.envs.registration import register
 
 from ipbench.envs.sorting import V0, V2, SortingConfig
 
-__all__ = ["ENV_IDS", "LATEST", "UNDER_DEVELOPMENT", "V2_IDS", "EnvIdError", "env_config"]
+__all__ = [
+    "ALL_IDS",
+    "ENV_IDS",
+    "EXPLORATION_IDS",
+    "LATEST",
+    "UNDER_DEVELOPMENT",
+    "V2_IDS",
+    "EnvIdError",
+    "env_config",
+]
 
 LATEST = "ipbench/Sorting-v2"
 """The id the benchmark runs (``ipbench eval`` and ``make eval`` by default)."""
@@ -48,7 +62,14 @@ V2_IDS: tuple[str, ...] = tuple(i for i in ENV_IDS if i.endswith("-v2"))
 """The v2 ids (released by issue 12; frozen since, as every id not in
 :data:`UNDER_DEVELOPMENT`)."""
 
-UNDER_DEVELOPMENT: tuple[str, ...] = ()
+EXPLORATION_IDS: dict[str, dict] = {"ipbench/Exploration-v0": {}}
+"""The exploration ids (thesis ch. 3) and the keyword arguments each fixes; entry point
+:class:`ipbench.envs.exploration.ExplorationEnv`. Not in :data:`ENV_IDS` (Sorting's)."""
+
+ALL_IDS: tuple[str, ...] = (*ENV_IDS, *EXPLORATION_IDS)
+"""Every registered ipbench id."""
+
+UNDER_DEVELOPMENT: tuple[str, ...] = ("ipbench/Exploration-v0",)
 """Ids whose behaviour may still change until the issue that makes their headline measurement
 releases them; every other id is released and frozen (``tests/test_released_ids.py``)."""
 
@@ -74,3 +95,6 @@ warnings.filterwarnings("ignore", message=r".*ipbench/\w+-v[01] is out of date")
 
 for _id, _kwargs in ENV_IDS.items():
     register(id=_id, entry_point="ipbench.envs.sorting:SortingEnv", kwargs=_kwargs)
+
+for _id, _kwargs in EXPLORATION_IDS.items():
+    register(id=_id, entry_point="ipbench.envs.exploration:ExplorationEnv", kwargs=_kwargs)

@@ -1,0 +1,319 @@
+"""``ipbench/Exploration-v0`` (under development): explore a table scene with the stereo head.
+
+Thesis ch. 3: the robot's two PTU-mounted cameras saccade over a table and report the
+database objects they recognise. The public contract:
+
+* Action: ``{"gaze": Box(4) float64, "report": {"kind": Discrete(3), "label":
+  Discrete(len(DATABASE_CLASSES)), "position": Box(3)}}``. ``gaze`` = (left pan, left tilt,
+  right pan, right tilt) targets, rad, within the PTU limits (:mod:`ipbench.envs.ptu`).
+  ``report.kind``: 0 none, 1 an object of class ``DATABASE_CLASSES[label]`` at world point
+  ``position`` (m), 2 done (ends the episode). A report is scored first (+1 true positive,
+  -1 false positive; :mod:`ipbench.envs.exploration_scoring`), then (unless done) the head
+  saccades: each physics step the PTU position actuators get the rate-limited setpoints of
+  the quantised targets until the head has settled (encoder on target, speed below
+  ``settle_speed``) or ``max_saccade_time`` has passed. ``saccade_budget`` saccades truncate.
+* Observation: ``head_left``/``head_right`` (HxWx3 uint8), ``head_*_K`` (3x3), ``head_*_pose``
+  (4x4 world-from-camera, OpenCV axes, by forward kinematics of the encoder readings: what
+  the robot knows), ``head_qpos`` (4,) encoder readings, rad.
+* ``info`` (ground truth, evaluation and oracles only): ``objects`` {name: class (a
+  database class or None), instance, role, position (3,), radius}, ``head_left_mask`` /
+  ``head_right_mask`` (HxW int32 index into ``objects``' order, -1 none), ``score``,
+  ``report`` (this step's outcome or None), ``saccade_s``, ``saccades``.
+* ``step()``/``render()`` before ``reset()`` or after ``close()``: :class:`ResetNeededError`;
+  a bad action: :class:`InvalidActionError` naming the field and the valid range.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import gymnasium as gym
+import mujoco
+import numpy as np
+from gymnasium import spaces
+
+from ipbench.assets.compose import HEAD_SIDES
+from ipbench.envs.exploration_scene import (
+    DATABASE_CLASSES,
+    GAZE_JOINTS,
+    LEVELS,
+    build_model,
+    sample_scene,
+)
+from ipbench.envs.exploration_scoring import GroundTruthObject, Scorer
+from ipbench.envs.ptu import PtuSpec, head_spec_arrays, ptu_spec, setpoint_step
+from ipbench.envs.sensors import SensorRenderer, camera_pose, intrinsics
+from ipbench.envs.sorting import InvalidActionError, ResetNeededError
+
+__all__ = [
+    "GAZE_JOINTS",
+    "REPORT_KINDS",
+    "ExplorationConfig",
+    "ExplorationEnv",
+    "InvalidActionError",
+    "ResetNeededError",
+]
+
+REPORT_KINDS: tuple[str, ...] = ("none", "object", "done")
+"""Meaning of ``action["report"]["kind"]``."""
+POSITION_BOUND = 5.0
+"""A report's ``position`` lies in [-5, 5]^3 m (the work cell is well inside)."""
+
+
+@dataclass(frozen=True)
+class ExplorationConfig:
+    """Settings of an exploration episode.
+
+    Attributes
+    ----------
+    scene : level, one of ``"simple"``, ``"medium"``, ``"complex"``
+        (:data:`~ipbench.envs.exploration_scene.LEVELS`).
+    head_size : (height, width) of each head image, px (D5100-like 3:2).
+    saccade_budget : saccades (steps that are not ``done``) before truncation.
+    settle_tolerance : the head has settled when every joint is within this many PTU steps
+        of its target (0.5: the encoder reads the target) ...
+    settle_speed : ... and moves slower than this (rad/s).
+    max_saccade_time : longest simulated time of one saccade (s); the slowest full swing,
+        tilt's 77.7 deg at 60 deg/s, takes 1.3 s.
+    """
+
+    scene: str = "simple"
+    head_size: tuple[int, int] = (680, 1024)
+    saccade_budget: int = 30
+    settle_tolerance: float = 0.5
+    settle_speed: float = 0.01
+    max_saccade_time: float = 3.0
+
+    def __post_init__(self) -> None:
+        if self.scene not in LEVELS:
+            raise ValueError(f"unknown scene {self.scene!r}; valid: {', '.join(LEVELS)}")
+        size = tuple(self.head_size)
+        if len(size) != 2 or not all(isinstance(v, int) and 0 < v for v in size):
+            raise ValueError(f"head_size must be (height, width) positive ints, got {size!r}")
+        object.__setattr__(self, "head_size", size)
+        if not (isinstance(self.saccade_budget, int) and self.saccade_budget >= 1):
+            raise ValueError(f"saccade_budget must be an int >= 1, got {self.saccade_budget!r}")
+        if not (self.settle_tolerance > 0 and self.settle_speed > 0 and self.max_saccade_time > 0):
+            raise ValueError("settle_tolerance, settle_speed and max_saccade_time must be > 0")
+
+
+class ExplorationEnv(gym.Env):
+    """Find the database objects of a table scene with the stereo head (module docstring)."""
+
+    metadata = {"render_modes": ["rgb_array"], "render_fps": 5}
+
+    def __init__(self, render_mode: str | None = None, **config) -> None:
+        if render_mode not in (None, "rgb_array"):
+            raise ValueError(f"render_mode must be None or 'rgb_array', not {render_mode!r}")
+        self.config = ExplorationConfig(**config)
+        self.render_mode = render_mode
+        self.ptus: tuple[PtuSpec, PtuSpec] = (ptu_spec(), ptu_spec())
+        lim = head_spec_arrays(self.ptus)
+        self._lower, self._upper, self._speed = lim["lower"], lim["upper"], lim["speed"]
+        h, w = self.config.head_size
+        b = POSITION_BOUND
+        self.action_space = spaces.Dict(
+            gaze=spaces.Box(self._lower, self._upper, dtype=np.float64),
+            report=spaces.Dict(
+                kind=spaces.Discrete(len(REPORT_KINDS)),
+                label=spaces.Discrete(len(DATABASE_CLASSES)),
+                position=spaces.Box(-b, b, shape=(3,), dtype=np.float64),
+            ),
+        )
+        obs = {}
+        for s in HEAD_SIDES:
+            obs[f"head_{s}"] = spaces.Box(0, 255, (h, w, 3), np.uint8)
+            obs[f"head_{s}_K"] = spaces.Box(-np.inf, np.inf, (3, 3), np.float64)
+            obs[f"head_{s}_pose"] = spaces.Box(-np.inf, np.inf, (4, 4), np.float64)
+        obs["head_qpos"] = spaces.Box(self._lower, self._upper, dtype=np.float64)
+        self.observation_space = spaces.Dict(obs)
+        self.model = self.data = self.scene = None
+        self._renderer: SensorRenderer | None = None
+        self._closed = False
+
+    # -- gymnasium API -------------------------------------------------------------------------
+    def reset(self, *, seed: int | None = None, options: dict | None = None):
+        super().reset(seed=seed)
+        if options:
+            raise ValueError(f"unknown reset option(s) {sorted(options)}; valid: none")
+        self.scene = sample_scene(self.config.scene, int(self.np_random.integers(2**31)))
+        self.model = m = build_model(self.scene)
+        if tuple(PtuSpec.from_model(m, f"head_{s}_") for s in HEAD_SIDES) != self.ptus:
+            raise RuntimeError("the work cell's PTUs differ from assets/head/ptu_d46.xml")
+        self.data = mujoco.MjData(m)
+        mujoco.mj_resetDataKeyframe(m, self.data, m.key("home").id)
+        mujoco.mj_forward(m, self.data)
+        self._fk = mujoco.MjData(m)
+        self._qadr = np.array([m.jnt_qposadr[m.joint(j).id] for j in GAZE_JOINTS])
+        self._dadr = np.array([m.jnt_dofadr[m.joint(j).id] for j in GAZE_JOINTS])
+        self._act = np.array(  # the position actuator of each gaze joint
+            [
+                next(a for a in range(m.nu) if m.actuator_trnid[a, 0] == m.joint(j).id)
+                for j in GAZE_JOINTS
+            ]
+        )
+        self._setpoint = np.asarray(self.scene.home_gaze, float)
+        if self._renderer is not None:
+            self._renderer.close()
+        self._renderer = SensorRenderer(m)
+        roots = {m.body(o.name).id: k for k, o in enumerate(self.scene.objects)}
+        self._mask_lut = np.full(m.ngeom + 1, -1, np.int32)  # last entry: background (-1)
+        for g in range(m.ngeom):
+            self._mask_lut[g] = roots.get(int(m.body_rootid[m.geom_bodyid[g]]), -1)
+        self._truth = tuple(self._ground_truth(o) for o in self.scene.objects)
+        self._scorer = Scorer(self._truth, DATABASE_CLASSES)
+        self._saccades, self._closed = 0, False
+        obs = self._observation()
+        return obs, self._info(None, 0.0)
+
+    def step(self, action):
+        self._require_episode("step")
+        gaze, kind, label, position = self._validate(action)
+        reward, outcome = 0.0, None
+        if REPORT_KINDS[kind] == "object":
+            outcome = self._scorer.report(DATABASE_CLASSES[label], position)
+            reward = 1.0 if outcome.kind == "true_positive" else -1.0
+        terminated = REPORT_KINDS[kind] == "done"
+        saccade_s = 0.0
+        if not terminated:
+            saccade_s = self._saccade(gaze)
+            self._saccades += 1
+        truncated = not terminated and self._saccades >= self.config.saccade_budget
+        obs = self._observation()
+        report = None if outcome is None else outcome.__dict__.copy()
+        return obs, reward, terminated, truncated, self._info(report, saccade_s)
+
+    def render(self):
+        if self.render_mode != "rgb_array":
+            return None
+        self._require_episode("render")
+        return self._last_left.copy()
+
+    def close(self) -> None:
+        """Free the renderer and end the episode (idempotent); ``reset()`` starts a new one."""
+        if self._renderer is not None:
+            self._renderer.close()
+            self._renderer = None
+        if self.model is not None:
+            self.model = self.data = None
+            self._closed = True
+
+    # -- internals -----------------------------------------------------------------------------
+    def _require_episode(self, method: str) -> None:
+        if self.model is None:
+            why = "the environment was closed" if self._closed else "no episode has started"
+            raise ResetNeededError(f"{why}: call reset() before {method}()")
+
+    def _validate(self, action) -> tuple[np.ndarray, int, int, np.ndarray]:
+        keys = sorted(self.action_space.spaces)
+        if not isinstance(action, dict) or sorted(action) != keys:
+            got = sorted(action) if isinstance(action, dict) else type(action).__name__
+            raise InvalidActionError(f"an action is a dict with keys {keys}; got {got}")
+        gaze = np.asarray(action["gaze"], float).reshape(-1)
+        if gaze.shape != (4,) or not np.isfinite(gaze).all():
+            raise InvalidActionError(
+                f"action['gaze'] = {action['gaze']!r}: 4 finite angles (rad) {list(GAZE_JOINTS)}"
+            )
+        for k, joint in enumerate(GAZE_JOINTS):
+            if not self._lower[k] <= gaze[k] <= self._upper[k]:
+                raise InvalidActionError(
+                    f"action['gaze'][{k}] ({joint}) = {gaze[k]:.4f} rad is outside the PTU "
+                    f"limits [{self._lower[k]:.4f}, {self._upper[k]:.4f}] rad "
+                    f"([{np.degrees(self._lower[k]):.1f}, {np.degrees(self._upper[k]):.1f}] deg)"
+                )
+        report = action["report"]
+        rkeys = sorted(self.action_space["report"].spaces)
+        if not isinstance(report, dict) or sorted(report) != rkeys:
+            raise InvalidActionError(
+                f"action['report'] is a dict with keys {rkeys}; got {report!r}"
+            )
+        values = []
+        for key, names in (("kind", REPORT_KINDS), ("label", DATABASE_CLASSES)):
+            v = report[key]
+            if not (np.ndim(v) == 0 and float(v) == int(v) and 0 <= int(v) < len(names)):
+                valid = ", ".join(f"{i}={n}" for i, n in enumerate(names))
+                raise InvalidActionError(f"action['report'][{key!r}] = {v!r}; valid: {valid}")
+            values.append(int(v))
+        pos = np.asarray(report["position"], float).reshape(-1)
+        if pos.shape != (3,) or not np.isfinite(pos).all() or np.abs(pos).max() > POSITION_BOUND:
+            raise InvalidActionError(
+                f"action['report']['position'] = {report['position']!r}: 3 finite floats (world "
+                f"m) within [-{POSITION_BOUND}, {POSITION_BOUND}]"
+            )
+        return gaze, values[0], values[1], pos
+
+    def _saccade(self, gaze: np.ndarray) -> float:
+        """Drive the PTUs to ``gaze`` until settled or the time limit; simulated seconds."""
+        m, d, cfg = self.model, self.data, self.config
+        target = np.concatenate(
+            [p.command(gaze[2 * k : 2 * k + 2]) for k, p in enumerate(self.ptus)]
+        )
+        max_delta = self._speed * m.opt.timestep
+        tol = cfg.settle_tolerance * self.ptus[0].step
+        start = d.time
+        while d.time - start < cfg.max_saccade_time - 1e-9:
+            self._setpoint = setpoint_step(self._setpoint, target, max_delta)
+            d.ctrl[self._act] = self._setpoint
+            mujoco.mj_step(m, d)
+            if (
+                np.array_equal(self._setpoint, target)
+                and np.all(np.abs(d.qpos[self._qadr] - target) <= tol)
+                and np.all(np.abs(d.qvel[self._dadr]) < cfg.settle_speed)
+            ):
+                break
+        mujoco.mj_forward(m, d)
+        return float(d.time - start)
+
+    def _encoder(self) -> np.ndarray:
+        q = self.data.qpos[self._qadr]
+        return np.concatenate([p.encoder(q[2 * k : 2 * k + 2]) for k, p in enumerate(self.ptus)])
+
+    def _observation(self) -> dict:
+        m, d, r = self.model, self.data, self._renderer
+        h, w = self.config.head_size
+        enc = self._encoder()
+        fk = self._fk  # the robot's belief: forward kinematics of the encoder readings
+        fk.qpos[:] = d.qpos
+        fk.qpos[self._qadr] = enc
+        mujoco.mj_kinematics(m, fk)
+        mujoco.mj_comPos(m, fk)
+        mujoco.mj_camlight(m, fk)
+        obs, self._masks = {}, {}
+        for s in HEAD_SIDES:
+            cam = f"head_{s}_camera"
+            obs[f"head_{s}"] = r.render_rgb(d, cam, w, h)
+            obs[f"head_{s}_K"] = intrinsics(m, cam, w, h).K
+            obs[f"head_{s}_pose"] = camera_pose(m, fk, cam)
+            self._masks[s] = self._mask_lut[r.render_segmentation(d, cam, w, h)]
+        obs["head_qpos"] = enc
+        self._last_left = obs["head_left"]
+        return obs
+
+    def _ground_truth(self, obj) -> GroundTruthObject:
+        rot = np.empty(9)
+        mujoco.mju_quat2Mat(rot, np.asarray(obj.quat, float))
+        inst = obj.instance
+        center = np.asarray(obj.position) + rot.reshape(3, 3) @ np.asarray(inst.center)
+        radius = 0.5 * float(np.linalg.norm(inst.size))
+        return GroundTruthObject(obj.name, obj.label, tuple(center.tolist()), radius)
+
+    def _info(self, report: dict | None, saccade_s: float) -> dict:
+        objects = {
+            t.name: {
+                "class": t.label,
+                "instance": o.instance.name,
+                "role": o.role,
+                "position": np.array(t.position),
+                "radius": t.radius,
+            }
+            for t, o in zip(self._truth, self.scene.objects, strict=True)
+        }
+        return {
+            "objects": objects,
+            "head_left_mask": self._masks["left"],
+            "head_right_mask": self._masks["right"],
+            "score": self._scorer.score.as_dict(),
+            "report": report,
+            "saccade_s": saccade_s,
+            "saccades": self._saccades,
+        }
