@@ -15,6 +15,16 @@ imported here.
   scikit-learn GP baselines.
 - :mod:`~ipbench.perception.metrics`: accuracy, log loss, calibration error, confusion.
 - :mod:`~ipbench.perception.model`: a trained model on disk, checked against its config hash.
+
+Active binocular vision (thesis ch. 3; imported from their modules, not here):
+
+- :mod:`~ipbench.perception.features2d`: SIFT, KAZE, AKAZE, ORB keypoints; ratio-test matching.
+- :mod:`~ipbench.perception.object_database`: views of known objects, their features, on disk.
+- :mod:`~ipbench.perception.recognition`: multiple same-class object instances (Hough voting of
+  the object centre, RANSAC homography).
+- :mod:`~ipbench.perception.vergence`: disparity histograms, global and selective vergence.
+- :mod:`~ipbench.perception.stereo`: triangulation, epipolar checks, left/right hypotheses.
+- :mod:`~ipbench.perception.saliency`: saliency of unexplained features, inhibition of return.
 """
 
 from ipbench.perception.classifiers import CLASSIFIERS, Classifier, make_classifier

@@ -1,0 +1,282 @@
+"""Recognition of multiple same-class object instances (MSCOI, thesis ch. 3 §3.3).
+
+1. Match the scene's features to every view of the database (Lowe's ratio test, per view, so
+   that the overlapping views of one object do not fail each other's ratio test).
+2. Each match votes for the object's centre in the scene: ``centre = xy_scene + s R(theta)
+   offset``, with the scale ``s`` = ratio of keypoint sizes, ``theta`` = difference of keypoint
+   angles, ``offset`` = the model keypoint's offset to the object centre in its view.
+3. Per class, Lowe's (2004, §7.3) Hough transform: bins of location (width
+   :attr:`RecognitionConfig.hough_fraction` = 0.25 of the class' largest view outline
+   diagonal times the scale), orientation (30°) and scale (factor 2), each vote entered in the
+   2 nearest bins of each dimension. Greedily, the bin with most live votes becomes a cluster
+   and its votes are retired; repeat while a bin has ``min_inliers`` votes. Instances side by
+   side are more than a quarter of their size apart, so they fall in separate bins. Votes with
+   a size ratio beyond ``1/max_zoom..max_zoom`` (3 octaves) are false matches and dropped.
+4. Verify a cluster with a RANSAC homography (``cv2.findHomography``) from the view with most
+   votes in it to the scene: reprojection threshold 5 px (OpenCV's feature-homography
+   tutorial), at least ``min_inliers`` = 10 distinct scene keypoints as inliers, and a
+   non-degenerate outline (convex, not mirrored, not collapsed).
+5. A hypothesis whose centre lies inside a stronger hypothesis' outline (of any class) is
+   dropped: the same instance found twice, or a weak look-alike of another class (shared
+   print, e.g. a common font, can give ten-odd consistent matches) where an object already is.
+
+Scene keypoints that are inliers of no hypothesis are returned as ``unmatched``: features of
+nothing known, which :mod:`~ipbench.perception.saliency` turns into places to look at.
+No value here was tuned on a result.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import cv2
+import numpy as np
+
+from ipbench.perception.features2d import LOWE_RATIO, ActiveVisionError, Features, match
+from ipbench.perception.object_database import ObjectDatabase
+
+__all__ = ["Hypothesis", "Recognition", "RecognitionConfig", "recognise"]
+
+
+@dataclass(frozen=True)
+class RecognitionConfig:
+    """MSCOI settings (module docstring): ratio test, Hough bin widths, RANSAC check."""
+
+    ratio: float = LOWE_RATIO
+    hough_fraction: float = 0.25  # centre bin / predicted object size (Lowe 2004, §7.3)
+    max_angle_deg: float = 30.0  # orientation bin (Lowe 2004, §7.3)
+    max_scale_factor: float = 2.0  # scale bin (Lowe 2004, §7.3)
+    reproj_px: float = 5.0  # RANSAC reprojection threshold (OpenCV feature-homography tutorial)
+    min_inliers: int = 10
+    max_zoom: float = 8.0  # a vote whose size ratio is beyond 1/8..8 (3 octaves) is dropped
+    ransac_iters: int = 2000
+    ransac_confidence: float = 0.995
+
+    def __post_init__(self) -> None:
+        if not (0 < self.ratio <= 1 and self.hough_fraction > 0 and self.max_angle_deg > 0):
+            raise ActiveVisionError(f"invalid {self}; valid: 0 < ratio <= 1, positive bins")
+        if (
+            self.max_scale_factor <= 1
+            or self.max_zoom <= 1
+            or self.reproj_px <= 0
+            or self.min_inliers < 4
+        ):
+            raise ActiveVisionError(
+                f"invalid {self}; valid: max_scale_factor > 1, max_zoom > 1, reproj_px > 0,"
+                " min_inliers >= 4"
+            )
+
+
+@dataclass(frozen=True, eq=False)
+class Hypothesis:
+    """One recognised object instance in a scene image.
+
+    Attributes
+    ----------
+    class_name : str
+        The object's class.
+    centre : (2,) float64 array
+        The object's centre (the view's centre through the homography), px.
+    outline : (4, 2) float64 array
+        The view's outline through the homography, px.
+    inliers : int
+        Distinct scene keypoints consistent with the homography (>= ``min_inliers``).
+    score : float
+        ``inliers`` / keypoints of the matched view, in [0, 1]: the share of the model found.
+    inlier_indices : (inliers,) int64 array
+        Indices of the inlier keypoints in the scene's :class:`Features`, sorted.
+    view : int
+        Index of the matched view in the database.
+    homography : (3, 3) float64 array
+        View pixels -> scene pixels.
+    """
+
+    class_name: str
+    centre: np.ndarray
+    outline: np.ndarray
+    inliers: int
+    score: float
+    inlier_indices: np.ndarray
+    view: int
+    homography: np.ndarray = field(repr=False)
+
+
+@dataclass(frozen=True, eq=False)
+class Recognition:
+    """Hypotheses, strongest (most inliers) first, and the scene keypoints none explains.
+
+    ``unmatched`` : (U,) int64 indices into the scene's features, sorted.
+    """
+
+    hypotheses: tuple[Hypothesis, ...]
+    unmatched: np.ndarray
+
+
+@dataclass(frozen=True)
+class _Votes:
+    view: np.ndarray  # (n,) database view index
+    scene: np.ndarray  # (n,) scene keypoint index
+    model: np.ndarray  # (n,) keypoint index in the view
+    centre: np.ndarray  # (n, 2) predicted object centre, px
+    log_scale: np.ndarray  # (n,) log2 of the size ratio
+    angle: np.ndarray  # (n,) rotation, rad
+
+
+def _votes(
+    scene: Features, database: ObjectDatabase, views: list[int], config: RecognitionConfig
+) -> _Votes:
+    parts = []
+    for vi in views:
+        view = database.views[vi]
+        pairs = match(scene, view.features, config.ratio)
+        scale = scene.size[pairs[:, 0]].astype(float) / np.maximum(
+            view.features.size[pairs[:, 1]], 1e-6
+        )
+        zoom_ok = np.abs(np.log(scale)) <= np.log(config.max_zoom)
+        pairs, scale = pairs[zoom_ok], scale[zoom_ok]
+        if len(pairs) == 0:
+            continue
+        s, m = pairs[:, 0], pairs[:, 1]
+        theta = np.deg2rad(scene.angle[s].astype(float) - view.features.angle[m])
+        off = view.offsets[m].astype(float)
+        c, sn = np.cos(theta), np.sin(theta)
+        rotated = np.stack([c * off[:, 0] - sn * off[:, 1], sn * off[:, 0] + c * off[:, 1]], 1)
+        centre = scene.xy[s] + scale[:, None] * rotated
+        parts.append((np.full(len(s), vi), s, m, centre, np.log2(scale), theta))
+    if not parts:
+        empty = np.zeros(0)
+        return _Votes(empty.astype(int), empty.astype(int), empty.astype(int),
+                      np.zeros((0, 2)), empty, empty)  # fmt: skip
+    return _Votes(*(np.concatenate(column) for column in zip(*parts, strict=True)))
+
+
+def _hough_bins(
+    votes: _Votes, model_size: float, config: RecognitionConfig
+) -> tuple[np.ndarray, np.ndarray]:
+    """Lowe's Hough transform: each vote goes into the 2 nearest bins of each of location x, y
+    (width ``hough_fraction * model_size * scale``, the scale of its scale bin), orientation and
+    log-scale: 16 entries. Returns each entry's vote (16 n,) and bin id (16 n,)."""
+    n = len(votes.scene)
+    fs = votes.log_scale / np.log2(config.max_scale_factor)
+    fa = votes.angle / np.deg2rad(config.max_angle_deg)
+    n_angle = int(round(360.0 / config.max_angle_deg))
+    keys, owners = [], []
+    for s_bin in _two_nearest(fs):
+        width = config.hough_fraction * model_size * config.max_scale_factor ** (s_bin + 0.5)
+        for a_bin in _two_nearest(fa):
+            for x_bin in _two_nearest(votes.centre[:, 0] / width):
+                for y_bin in _two_nearest(votes.centre[:, 1] / width):
+                    x = np.clip(x_bin, -(2**20), 2**20 - 1) + 2**20
+                    y = np.clip(y_bin, -(2**20), 2**20 - 1) + 2**20
+                    key = (x << 29) | (y << 8) | ((a_bin % n_angle) << 4) | (s_bin + 8)
+                    keys.append(key)
+                    owners.append(np.arange(n))
+    _, bin_of = np.unique(np.concatenate(keys), return_inverse=True)
+    return np.concatenate(owners), bin_of.ravel()
+
+
+def _two_nearest(value: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The bin of ``value`` (bins of width 1) and its neighbour nearest to ``value``."""
+    low = np.floor(value).astype(np.int64)
+    return low, np.where(value - low >= 0.5, low + 1, low - 1)
+
+
+def _good_outline(outline: np.ndarray) -> bool:
+    quad = outline.astype(np.float32)
+    if not np.all(np.isfinite(quad)) or not cv2.isContourConvex(quad):
+        return False
+    x, y = quad[:, 0], quad[:, 1]
+    signed = 0.5 * float(np.dot(x, np.roll(y, -1)) - np.dot(y, np.roll(x, -1)))
+    return signed > 1.0  # clockwise on screen (y down) as the view's outline: not mirrored
+
+
+def _verify(
+    scene: Features,
+    database: ObjectDatabase,
+    votes: _Votes,
+    members: np.ndarray,
+    config: RecognitionConfig,
+) -> Hypothesis | None:
+    views, counts = np.unique(votes.view[members], return_counts=True)
+    vi = int(views[np.argmax(counts)])  # most votes; ties: the lowest view index
+    chosen = members[votes.view[members] == vi]
+    if len(np.unique(votes.scene[chosen])) < config.min_inliers:
+        return None
+    view = database.views[vi]
+    src = view.features.xy[votes.model[chosen]].astype(np.float64)
+    dst = scene.xy[votes.scene[chosen]].astype(np.float64)
+    H, mask = cv2.findHomography(
+        src, dst, cv2.RANSAC, config.reproj_px,
+        maxIters=config.ransac_iters, confidence=config.ransac_confidence,
+    )  # fmt: skip
+    if H is None or mask is None:
+        return None
+    inlier_scene = np.unique(votes.scene[chosen][mask.ravel() != 0])
+    if len(inlier_scene) < config.min_inliers:
+        return None
+    outline = cv2.perspectiveTransform(view.outline[None].astype(np.float64), H)[0]
+    if not _good_outline(outline):
+        return None
+    centre = cv2.perspectiveTransform(view.centre[None, None].astype(np.float64), H)[0, 0]
+    return Hypothesis(
+        view.class_name, centre, outline, len(inlier_scene),
+        len(inlier_scene) / max(len(view.features), 1), inlier_scene.astype(np.int64), vi, H,
+    )  # fmt: skip
+
+
+def _cluster(
+    scene: Features,
+    database: ObjectDatabase,
+    votes: _Votes,
+    model_size: float,
+    config: RecognitionConfig,
+) -> list[Hypothesis]:
+    found: list[Hypothesis] = []
+    if len(votes.scene) < config.min_inliers:
+        return found
+    owner, bin_of = _hough_bins(votes, model_size, config)
+    alive = np.ones(len(votes.scene), bool)
+    while alive.sum() >= config.min_inliers:
+        live = alive[owner]
+        counts = np.bincount(bin_of[live], minlength=int(bin_of.max()) + 1)
+        best = int(np.argmax(counts))  # ties: the lowest bin id (deterministic)
+        if counts[best] < config.min_inliers:
+            break
+        members = np.unique(owner[live & (bin_of == best)])
+        alive[members] = False
+        hypothesis = _verify(scene, database, votes, members, config)
+        if hypothesis is not None:
+            found.append(hypothesis)
+            alive &= ~np.isin(votes.scene, hypothesis.inlier_indices)
+    return found
+
+
+def recognise(
+    scene: Features, database: ObjectDatabase, config: RecognitionConfig | None = None
+) -> Recognition:
+    """All instances of the database's classes in a scene's features (module docstring)."""
+    config = config or RecognitionConfig()
+    if scene.feature_type != database.feature_type:
+        raise ActiveVisionError(
+            f"scene has {scene.feature_type} features, the database {database.feature_type};"
+            " valid: detect the scene with the database's feature type"
+        )
+    candidates: list[Hypothesis] = []
+    for name in database.classes:
+        views = [i for i, v in enumerate(database.views) if v.class_name == name]
+        model_size = 2.0 * max(database.views[i].radius for i in views)
+        votes = _votes(scene, database, views, config)
+        candidates += _cluster(scene, database, votes, model_size, config)
+    candidates.sort(key=lambda h: (-h.inliers, -h.score, h.class_name, h.centre[0], h.centre[1]))
+    kept: list[Hypothesis] = []
+    for h in candidates:  # one place, two hypotheses: keep the stronger
+        if not any(
+            cv2.pointPolygonTest(k.outline.astype(np.float32), tuple(map(float, h.centre)), False)
+            >= 0
+            for k in kept
+        ):
+            kept.append(h)
+    explained = np.zeros(len(scene), bool)
+    for h in kept:
+        explained[h.inlier_indices] = True
+    return Recognition(tuple(kept), np.flatnonzero(~explained).astype(np.int64))
