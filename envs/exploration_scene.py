@@ -53,6 +53,7 @@ __all__ = [
     "build_model",
     "database_instance",
     "sample_scene",
+    "table_height",
 ]
 
 DATABASE_CLASSES: tuple[str, ...] = (
@@ -178,7 +179,7 @@ def _model() -> mujoco.MjModel:
     return build_workcell_spec().compile()
 
 
-def _table_height() -> float:
+def table_height() -> float:
     return float(_model().site("work_table_top").pos[2])
 
 
@@ -262,7 +263,7 @@ def sample_scene(level: str, seed: int) -> ExplorationScene:
     cfg = LEVELS[level]
     rng = np.random.default_rng([int(seed), 2018, 3])
     front, back = _pools()
-    height = _table_height()
+    height = table_height()
     for _ in range(_ATTEMPTS):
         classes = [DATABASE_CLASSES[i] for i in rng.permutation(len(DATABASE_CLASSES))]
         classes = classes[: cfg.n_classes]
