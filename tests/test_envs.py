@@ -25,6 +25,14 @@ def test_export_list_is_current():
     assert set(ENV_IDS) <= set(gym.registry)
 
 
+def test_every_registered_id_is_in_a_battery():
+    """Sorting ids run the battery below; exploration ids ``tests/test_exploration_env.py``'s
+    (the same invariants: check_env, determinism, observations in the space, errors)."""
+    ours = {i for i in gym.registry if i.startswith("ipbench/")}
+    assert ours == set(ipbench.envs.ALL_IDS)
+    assert ours == set(ipbench.envs.ENV_IDS) | set(ipbench.envs.EXPLORATION_IDS)
+
+
 @pytest.fixture(scope="module", params=ENV_IDS)
 def env(request):
     env = gym.make(request.param, render_mode="rgb_array")

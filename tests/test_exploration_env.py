@@ -88,9 +88,12 @@ def test_scenes_are_deterministic_and_seeds_differ():
 
 
 # -- environment ----------------------------------------------------------------------------
-@pytest.fixture(scope="module")
-def env():
-    env = gym.make(ID, scene="complex", head_size=SMALL, render_mode="rgb_array").unwrapped
+@pytest.fixture(scope="module", params=sorted(ipbench.envs.EXPLORATION_IDS))
+def env(request):
+    """The battery runs on every exploration id (tests/test_envs.py checks that every
+    registered id is in a battery)."""
+    kwargs = {"scene": "complex", **ipbench.envs.EXPLORATION_IDS[request.param]}
+    env = gym.make(request.param, head_size=SMALL, render_mode="rgb_array", **kwargs).unwrapped
     yield env
     env.close()
 
