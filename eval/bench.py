@@ -37,6 +37,7 @@ TARGETS = {
     "reset_s": 0.5,
     "skill_s": 1.0,
     "scene_s": 0.5,
+    "cycle_s": 0.5,
 }
 """Targets on the 2-core reference machine (``>=`` for rates, ``<=`` for times)."""
 

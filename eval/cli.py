@@ -4,9 +4,10 @@ ipbench demo [--out DIR] [--scenes uncluttered,cluttered] [--seed N] [--no-video
 ipbench eval perception [--env ID] [--out DIR] [--cache DIR]
 ipbench eval sorting [--scenes ...] [--policies ...] [--seeds A:B] [--workers N]
                      [--backend process|ray] [--video] [--out DIR] [--cache DIR]
+ipbench eval exploration [--scenes ...] [--policies ...] [--features ...] [--seeds A:B] ...
 ipbench figures [--env ID] [--out DIR]
 ipbench bench sim [--env ID] [--scene S] [--json [FILE]]
-ipbench bench perception|eval [--json [FILE]]
+ipbench bench perception|eval|exploration [--json [FILE]]
 """
 
 from __future__ import annotations
@@ -18,6 +19,11 @@ import sys
 from pathlib import Path
 
 from ipbench.eval.check import add_check_parser, main_check
+from ipbench.eval.cli_exploration import (
+    add_bench_exploration,
+    add_eval_exploration,
+    main_exploration,
+)
 from ipbench.eval.cli_options import add_json_option
 
 __all__ = ["main", "build_parser"]
@@ -26,11 +32,17 @@ __all__ = ["main", "build_parser"]
 def _valid_names() -> dict[str, tuple[str, ...]]:
     """The names help texts list, by placeholder (imported when help is shown: slow)."""
     from ipbench.envs import ENV_IDS
+    from ipbench.envs.exploration_scene import LEVELS
     from ipbench.envs.layout import SCENES
     from ipbench.eval.sorting import BACKENDS
+    from ipbench.perception.features2d import FEATURE_TYPES
     from ipbench.policies import FUSIONS, POLICIES
+    from ipbench.policies.exploration import EXPLORATION_POLICIES
 
     return {
+        "{LEVELS}": tuple(LEVELS),
+        "{EXPLORATION_POLICIES}": EXPLORATION_POLICIES,
+        "{FEATURES}": FEATURE_TYPES,
         "{ENV_IDS}": tuple(ENV_IDS),
         "{SCENES}": tuple(SCENES),
         "{POLICIES}": POLICIES,
@@ -186,6 +198,8 @@ def build_parser() -> argparse.ArgumentParser:
         "--cache", type=Path, default=Path("results/cache"), help="model and view cache folder"
     )
 
+    add_eval_exploration(eval_sub)
+
     figures = sub.add_parser(
         "figures",
         help="the README's pictures of an env's objects and sensor",
@@ -234,6 +248,7 @@ def build_parser() -> argparse.ArgumentParser:
         "--cache", type=Path, default=Path("results/cache"), help="model cache folder"
     )
     add_json_option(bench_eval)
+    add_bench_exploration(bench_sub)
     add_check_parser(sub)
     return parser
 
@@ -372,6 +387,8 @@ def main(argv: list[str] | None = None) -> int:
             print(f"{scene}: {row}")
         print(f"report written to {(args.out / 'sorting.md').resolve()}")
         return 0
+    if args.command in ("eval", "bench") and args.target == "exploration":
+        return main_exploration(args, _seeds, _writable, _print_figures)
     if args.command == "figures":
         from ipbench.eval.figures import depth_figure, family_gallery
 

@@ -32,7 +32,7 @@ from dataclasses import dataclass, field
 import cv2
 import numpy as np
 
-from ipbench.perception.features2d import LOWE_RATIO, ActiveVisionError, Features, match
+from ipbench.perception.features2d import LOWE_RATIO, ActiveVisionError, Features, match_many
 from ipbench.perception.object_database import ObjectDatabase
 
 __all__ = ["Hypothesis", "Recognition", "RecognitionConfig", "recognise"]
@@ -125,29 +125,30 @@ class _Votes:
 def _votes(
     scene: Features, database: ObjectDatabase, views: list[int], config: RecognitionConfig
 ) -> _Votes:
-    parts = []
-    for vi in views:
-        view = database.views[vi]
-        pairs = match(scene, view.features, config.ratio)
-        scale = scene.size[pairs[:, 0]].astype(float) / np.maximum(
-            view.features.size[pairs[:, 1]], 1e-6
-        )
-        zoom_ok = np.abs(np.log(scale)) <= np.log(config.max_zoom)
-        pairs, scale = pairs[zoom_ok], scale[zoom_ok]
-        if len(pairs) == 0:
-            continue
-        s, m = pairs[:, 0], pairs[:, 1]
-        theta = np.deg2rad(scene.angle[s].astype(float) - view.features.angle[m])
-        off = view.offsets[m].astype(float)
-        c, sn = np.cos(theta), np.sin(theta)
-        rotated = np.stack([c * off[:, 0] - sn * off[:, 1], sn * off[:, 0] + c * off[:, 1]], 1)
-        centre = scene.xy[s] + scale[:, None] * rotated
-        parts.append((np.full(len(s), vi), s, m, centre, np.log2(scale), theta))
-    if not parts:
+    # matching per view (the ratio test is per view); the vote geometry in one vectorised
+    # pass over all views' matches, in view order
+    matches = match_many(scene, [database.views[vi].features for vi in views], config.ratio)
+    found = [(vi, pairs) for vi, pairs in zip(views, matches, strict=True) if len(pairs)]
+    if not found:
         empty = np.zeros(0)
         return _Votes(empty.astype(int), empty.astype(int), empty.astype(int),
                       np.zeros((0, 2)), empty, empty)  # fmt: skip
-    return _Votes(*(np.concatenate(column) for column in zip(*parts, strict=True)))
+    view = np.concatenate([np.full(len(pairs), vi) for vi, pairs in found])
+    s = np.concatenate([pairs[:, 0] for _, pairs in found])
+    m = np.concatenate([pairs[:, 1] for _, pairs in found])
+    picked = [(database.views[vi], pairs[:, 1]) for vi, pairs in found]
+    m_size = np.concatenate([v.features.size[k] for v, k in picked])
+    m_angle = np.concatenate([v.features.angle[k] for v, k in picked])
+    m_off = np.concatenate([v.offsets[k] for v, k in picked])
+    scale = scene.size[s].astype(float) / np.maximum(m_size, 1e-6)
+    ok = np.abs(np.log(scale)) <= np.log(config.max_zoom)
+    view, s, m, scale, m_angle, m_off = view[ok], s[ok], m[ok], scale[ok], m_angle[ok], m_off[ok]
+    theta = np.deg2rad(scene.angle[s].astype(float) - m_angle)
+    off = m_off.astype(float)
+    c, sn = np.cos(theta), np.sin(theta)
+    rotated = np.stack([c * off[:, 0] - sn * off[:, 1], sn * off[:, 0] + c * off[:, 1]], 1)
+    centre = scene.xy[s] + scale[:, None] * rotated
+    return _Votes(view, s, m, centre, np.log2(scale), theta)
 
 
 def _hough_bins(
@@ -235,19 +236,30 @@ def _cluster(
     if len(votes.scene) < config.min_inliers:
         return found
     owner, bin_of = _hough_bins(votes, model_size, config)
-    alive = np.ones(len(votes.scene), bool)
+    n = len(votes.scene)
+    entries = bin_of.reshape(-1, n)  # entries[k, i]: the k-th of vote i's 16 bins
+    # live entries per bin, kept up to date as votes retire (equal to a fresh bincount of the
+    # live entries every round, without the O(16 n) pass per round)
+    counts = np.bincount(bin_of)
+    by_bin = np.argsort(bin_of, kind="stable")
+    start = np.searchsorted(bin_of[by_bin], np.arange(len(counts) + 1))
+    alive = np.ones(n, bool)
+
+    def retire(index: np.ndarray) -> None:
+        alive[index] = False
+        counts[:] -= np.bincount(entries[:, index].ravel(), minlength=len(counts))
+
     while alive.sum() >= config.min_inliers:
-        live = alive[owner]
-        counts = np.bincount(bin_of[live], minlength=int(bin_of.max()) + 1)
         best = int(np.argmax(counts))  # ties: the lowest bin id (deterministic)
         if counts[best] < config.min_inliers:
             break
-        members = np.unique(owner[live & (bin_of == best)])
-        alive[members] = False
+        in_bin = owner[by_bin[start[best] : start[best + 1]]]
+        members = np.unique(in_bin[alive[in_bin]])
+        retire(members)
         hypothesis = _verify(scene, database, votes, members, config)
         if hypothesis is not None:
             found.append(hypothesis)
-            alive &= ~np.isin(votes.scene, hypothesis.inlier_indices)
+            retire(np.flatnonzero(alive & np.isin(votes.scene, hypothesis.inlier_indices)))
     return found
 
 

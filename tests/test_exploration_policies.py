@@ -69,9 +69,7 @@ def test_vergence_brings_an_objects_disparity_under_two_pixels():
         disparities.append(abs(disparity))
         if abs(disparity) < VERGENCE_GOAL_PX:
             break
-        obs, *_ = env.step(
-            {"gaze": gaze, "report": {"kind": 0, "label": 0, "position": [0, 0, 0]}}
-        )
+        obs, *_ = env.step({"gaze": gaze, "report": {"kind": 0, "label": 0, "position": [0, 0, 0]}})
     env.close()
     assert disparities[0] > 10  # 1.5 deg at f ~ 760 px is ~20 px
     assert disparities[-1] < VERGENCE_GOAL_PX, disparities

@@ -15,6 +15,7 @@ from ipbench.perception.features2d import (
     ActiveVisionError,
     detect,
     match,
+    match_many,
     norm_of,
 )
 
@@ -138,3 +139,40 @@ def test_ratio_test_needs_two_features_and_a_patch_matches_itself():
     # a patch matched to itself: every feature finds itself (distance 0) unless a duplicate
     pairs = match(a, a)
     assert (pairs[:, 0] == pairs[:, 1]).mean() > 0.95
+
+
+def _bf_reference(query, train, ratio=0.8):
+    """Lowe's ratio test over cv2.BFMatcher.knnMatch (the original formulation of match)."""
+    matcher = cv2.BFMatcher(norm_of(query.feature_type), crossCheck=False)
+    pairs = matcher.knnMatch(query.descriptors, train.descriptors, k=2)
+    rows = [(p[0].queryIdx, p[0].trainIdx) for p in pairs if len(p) == 2]
+    rows = [r for r, p in zip(rows, pairs, strict=True) if p[0].distance < ratio * p[1].distance]
+    return np.array(rows, np.int64).reshape(-1, 2)
+
+
+@pytest.mark.parametrize("feature_type", FEATURE_TYPES)
+def test_match_and_match_many_equal_the_brute_force_matcher(feature_type):
+    scene, _ = paste(background(8), textured_patch(1), (300, 300), 20.0, 1.1)
+    scene, _ = paste(scene, textured_patch(2), (700, 350), -10.0, 0.9)
+    query = detect(scene, feature_type)
+    trains = [detect(textured_patch(seed), feature_type) for seed in (1, 2, 3)]
+    trains += [trains[0].subset(np.arange(1)), trains[1].subset(np.arange(0))]  # 1 and 0 kept
+    many = match_many(query, trains)
+    assert len(many) == len(trains) and len(many[0]) >= 30 and len(many[1]) >= 30
+    for train, got in zip(trains, many, strict=True):
+        expected = _bf_reference(query, train) if len(train) >= 2 else np.zeros((0, 2))
+        np.testing.assert_array_equal(got, expected)
+        np.testing.assert_array_equal(match(query, train), expected)
+    with pytest.raises(ActiveVisionError, match="same type"):
+        match_many(query, [detect(textured_patch(1), "orb" if feature_type != "orb" else "sift")])
+
+
+def test_sift_descriptors_take_the_exact_matrix_product_path():
+    # OpenCV's SIFT stores bytes as floats: the product path applies and is exact (test above);
+    # KAZE's real-valued descriptors do not qualify and use the brute-force kernel
+    from ipbench.perception.features2d import _integer_valued
+
+    assert _integer_valued(detect(textured_patch(1), "sift").descriptors)
+    assert not _integer_valued(detect(textured_patch(1), "kaze").descriptors)
+    assert not _integer_valued(np.array([[0.5, 1.0]], np.float32))
+    assert not _integer_valued(np.full((1, 128), 2000.0, np.float32))  # sums beyond 2**22

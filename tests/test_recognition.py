@@ -143,3 +143,89 @@ def test_bad_views_and_settings_get_clear_errors():
     database = ObjectDatabase.build(_views()[:2], "orb")
     with pytest.raises(ActiveVisionError, match="database's feature type"):
         recognise(detect(textured_patch(1), "sift"), database)
+
+
+def _summary(found):
+    return [
+        (h.class_name, h.centre.round(6).tolist(), h.inliers, h.view, h.inlier_indices.tolist())
+        for h in found.hypotheses
+    ] + [found.unmatched.tolist()]
+
+
+def _two_tea_scene():
+    patch = textured_patch(CLASSES["tea"])
+    scene, _ = paste(background(5), patch, (300, 340), 10.0, 1.0)
+    scene, _ = paste(scene, patch, (505, 345), -5.0, 1.0)
+    return paste(scene, textured_patch(CLASSES["cereal"]), (800, 250), 30.0, 0.9)[0]
+
+
+_CHILD = """
+import json, sys
+sys.path.insert(0, {tests!r})
+from test_recognition import _summary, _two_tea_scene, _views
+from ipbench.perception.features2d import detect
+from ipbench.perception.object_database import ObjectDatabase
+from ipbench.perception.recognition import recognise
+db = ObjectDatabase.build(_views(), "sift")
+print(json.dumps(_summary(recognise(detect(_two_tea_scene(), "sift"), db))))
+"""
+
+
+def test_recognition_is_the_same_in_another_process():
+    import json
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    database = ObjectDatabase.build(_views(), "sift")
+    here = json.loads(json.dumps(_summary(recognise(detect(_two_tea_scene(), "sift"), database))))
+    code = _CHILD.format(tests=str(Path(__file__).parent))
+    child = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert json.loads(child.stdout) == here
+    assert sorted(h[0] for h in here[:-1]) == ["cereal", "tea", "tea"]
+
+
+def test_incremental_hough_clustering_equals_recounting_every_round(database):
+    """_cluster keeps the live votes per bin up to date; a plain recount each round (the
+    definition) must pick the same clusters in the same order."""
+    from ipbench.perception import recognition as r
+
+    config = RecognitionConfig()
+    scene = detect(_two_tea_scene(), database.feature_type)
+    picked_fast, picked_plain = [], []
+    verify = r._verify
+
+    def spy(scene_, database_, votes_, members, config_):
+        picked_fast.append(members.tolist())
+        return verify(scene_, database_, votes_, members, config_)
+
+    for name in database.classes:
+        views = [i for i, v in enumerate(database.views) if v.class_name == name]
+        size = 2.0 * max(database.views[i].radius for i in views)
+        votes = r._votes(scene, database, views, config)
+        r._verify = spy
+        try:
+            fast = r._cluster(scene, database, votes, size, config)
+        finally:
+            r._verify = verify
+        plain = []
+        if len(votes.scene) >= config.min_inliers:
+            owner, bin_of = r._hough_bins(votes, size, config)
+            alive = np.ones(len(votes.scene), bool)
+            while alive.sum() >= config.min_inliers:
+                live = alive[owner]
+                counts = np.bincount(bin_of[live], minlength=int(bin_of.max()) + 1)
+                best = int(np.argmax(counts))
+                if counts[best] < config.min_inliers:
+                    break
+                members = np.unique(owner[live & (bin_of == best)])
+                picked_plain.append(members.tolist())
+                alive[members] = False
+                h = verify(scene, database, votes, members, config)
+                if h is not None:
+                    plain.append(h)
+                    alive &= ~np.isin(votes.scene, h.inlier_indices)
+        assert [(h.view, h.inlier_indices.tolist()) for h in fast] == [
+            (h.view, h.inlier_indices.tolist()) for h in plain
+        ]
+    assert picked_fast == picked_plain and len(picked_fast) >= 3

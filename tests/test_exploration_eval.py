@@ -1,0 +1,85 @@
+"""ipbench eval exploration: settings checked up front, a small run end to end, resume."""
+
+from __future__ import annotations
+
+import json
+
+import pytest
+
+from ipbench.eval.exploration import (
+    ExplorationEvalConfig,
+    ExplorationEvalError,
+    refixation_rate,
+    run_exploration_eval,
+)
+from ipbench.eval.exploration_database import DatabaseCaptureConfig
+from ipbench.policies.exploration import EXPLORATION_POLICIES, Fixation
+
+SIZE = (340, 512)
+SMALL = ExplorationEvalConfig(
+    scenes=("simple",),
+    policies=("active-vision", "oracle-gaze"),
+    features=("sift",),
+    seeds=(3,),
+    saccade_budget=3,
+    head_size=SIZE,
+    database=DatabaseCaptureConfig(head_size=SIZE, yaw_step_deg=90.0),
+)
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "message"),
+    [
+        ({"scenes": ("huge",)}, "unknown scene 'huge'; valid: simple, medium, complex"),
+        ({"policies": ("saccadic",)}, "valid: " + ", ".join(EXPLORATION_POLICIES)),
+        ({"features": ("surf",)}, "unknown feature type 'surf'; valid: sift, kaze, akaze, orb"),
+        ({"features": ("sift", "sift")}, "given twice"),
+        ({"seeds": (1, 1)}, "seeds repeat: 1"),
+        ({"seeds": ()}, "non-negative"),
+        ({"saccade_budget": 0}, "saccade_budget must be >= 1"),
+        ({"backend": "dask"}, "valid: process, ray"),
+        ({"ray_address": "auto"}, "--backend ray"),
+        ({"workers": 0}, "workers must be >= 1"),
+    ],
+)
+def test_bad_settings_say_what_is_valid(kwargs, message):
+    with pytest.raises(ExplorationEvalError, match=message.replace("(", r"\(")):
+        ExplorationEvalConfig(**kwargs)
+
+
+def test_refixation_counts_saccades_back_to_a_place_seen():
+    ahead, side, new = [0.0, 0.0, 1.0], [0.6, 0.0, 0.8], [0.0, 0.6, 0.8]
+    # each fixation's axis is where the head looks when it decides (after the last saccade)
+    fixations = [
+        Fixation("object", "a", ahead),
+        Fixation("verge", "a", side),  # after the saccade to the object: a new place
+        Fixation("salient", None, side),  # after a vergence: not a saccade
+        Fixation("salient", None, ahead),  # back to the first place: a re-fixation
+        Fixation("halt", None, new),
+    ]
+    assert refixation_rate(fixations) == pytest.approx(1 / 3, abs=1e-4)  # rounded to 4 places
+    assert refixation_rate(fixations[:1]) == 0.0
+
+
+def test_a_small_run_writes_the_report_and_resumes(tmp_path, capsys):
+    out, cache = tmp_path / "out", tmp_path / "cache"
+    summary = run_exploration_eval(out, cache, SMALL, progress=False)
+    cell = summary["simple"]["active-vision"]["sift"]
+    for key in ("performance_mean", "ci_low", "ci_high", "n", "true_positives",
+                "false_positives", "not_found"):  # fmt: skip
+        assert key in cell
+    assert cell["n"] == 1 and cell["ci_low"] <= cell["performance_mean"] <= cell["ci_high"]
+    records = [json.loads(line) for line in (out / "episodes.jsonl").read_text().splitlines()]
+    assert [(r["policy"], r["seed"]) for r in records] == [("active-vision", 3), ("oracle-gaze", 3)]
+    for r in records:
+        assert r["true_positives"] + r["not_found"] == r["n_database"]
+        assert len(r["recall_curve"]) == r["saccades"] + 1 and r["saccades"] <= 3
+    assert (out / "exploration.md").read_text().startswith("#")
+    # resume: nothing runs again, the report is written anew
+    run_exploration_eval(out, cache, SMALL, progress=False)
+    assert "2 episodes already in" in capsys.readouterr().out
+    assert len((out / "episodes.jsonl").read_text().splitlines()) == 2
+    # another configuration into the same folder is refused
+    other = ExplorationEvalConfig(**{**SMALL.__dict__, "saccade_budget": 4})
+    with pytest.raises(ExplorationEvalError, match="another configuration"):
+        run_exploration_eval(out, cache, other, progress=False)
