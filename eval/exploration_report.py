@@ -32,14 +32,24 @@ from __future__ import annotations
 
 import json
 import math
-from collections.abc import Callable, Iterable, Mapping, Sequence
+from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass
-from numbers import Integral, Real
 from pathlib import Path
 
 import numpy as np
 from matplotlib.figure import Figure
 
+from ipbench.eval.exploration_records import (
+    FEATURES,
+    FP_REASONS,
+    POLICY_ORDER,
+    SCENES,
+    ExplorationReportError,
+    Groups,
+    check_budget,
+    group_records,
+    ordered,
+)
 from ipbench.eval.stats import bootstrap_ci, paired_test
 
 __all__ = [
@@ -54,20 +64,10 @@ __all__ = [
     "write_exploration_report",
 ]
 
-SCENES: tuple[str, ...] = ("simple", "medium", "complex")
-"""Scene levels, in display order (the keys of ``ipbench.envs.exploration_scene.LEVELS``)."""
-FEATURES: tuple[str, ...] = ("sift", "kaze", "akaze", "orb")
-"""Feature types, in display order (``ipbench.perception.features2d.FEATURE_TYPES``)."""
-_POLICY_ORDER = ("active-vision", "oracle-gaze", "raster-scan", "random-gaze")
 _PROPOSED = "active-vision"
 _PAIRED_KEY = "vs_active_vision"
-_FP_REASONS = ("wrong_class", "already_reported", "nothing_there")
 _COUNTS = ("n_database", "true_positives", "false_positives", "not_found", "recovered")
 _DPI = 110
-
-
-class ExplorationReportError(ValueError):
-    """Bad episode records or report settings; the message names the record and field."""
 
 
 # --------------------------------------------------------------------------- thesis numbers
@@ -106,148 +106,6 @@ figure."""
 _THESIS_SOURCE = "Glasgow 2018 PhD thesis, ch. 3"
 
 
-# --------------------------------------------------------------------------- validation
-
-
-def _where(record: Mapping, index: int) -> str:
-    keys = ("scene", "policy", "feature", "seed")
-    return f"episode {index} (" + ", ".join(f"{k}={record.get(k)!r}" for k in keys) + ")"
-
-
-def _is_int(v: object) -> bool:
-    return isinstance(v, Integral) and not isinstance(v, bool)
-
-
-def _is_real(v: object) -> bool:
-    return isinstance(v, Real) and not isinstance(v, bool) and math.isfinite(float(v))
-
-
-_FIELDS: dict[str, tuple[str, Callable[[object], bool]]] = {
-    "n_database": ("an int >= 0", lambda v: _is_int(v) and v >= 0),
-    "true_positives": ("an int >= 0", lambda v: _is_int(v) and v >= 0),
-    "false_positives": ("an int >= 0", lambda v: _is_int(v) and v >= 0),
-    "not_found": ("an int >= 0", lambda v: _is_int(v) and v >= 0),
-    "recovered": ("an int >= 0", lambda v: _is_int(v) and v >= 0),
-    "performance": ("a number in [0, 1]", lambda v: _is_real(v) and 0 <= v <= 1),
-    "saccades": ("an int >= 0", lambda v: _is_int(v) and v >= 0),
-    "steps": ("an int >= 0", lambda v: _is_int(v) and v >= 0),
-    "sim_time_s": ("a number >= 0", lambda v: _is_real(v) and v >= 0),
-    "wall_time_s": ("a number >= 0", lambda v: _is_real(v) and v >= 0),
-    "cycle_s": ("a number >= 0", lambda v: _is_real(v) and v >= 0),
-    "refixation_rate": ("a number in [0, 1]", lambda v: _is_real(v) and 0 <= v <= 1),
-    "saccades_to_all": ("an int >= 0 or null", lambda v: v is None or (_is_int(v) and v >= 0)),
-    "sim_s_to_all": ("a number >= 0 or null", lambda v: v is None or (_is_real(v) and v >= 0)),
-    "halted": ("a bool", lambda v: isinstance(v, bool)),
-    "truncated": ("a bool", lambda v: isinstance(v, bool)),
-    "video": ("a str or null", lambda v: v is None or isinstance(v, str)),
-    "fp_reasons": (
-        f"a dict of ints >= 0 with the keys {', '.join(_FP_REASONS)}",
-        lambda v: (
-            isinstance(v, Mapping)
-            and set(v) == set(_FP_REASONS)
-            and all(_is_int(x) and x >= 0 for x in v.values())
-        ),
-    ),
-    "recall_curve": (
-        "a non-empty list of numbers in [0, 1]",
-        lambda v: isinstance(v, list) and v and all(_is_real(x) and 0 <= x <= 1 for x in v),
-    ),
-    "localisation_mm": (
-        "a list of numbers >= 0",
-        lambda v: isinstance(v, list) and all(_is_real(x) and x >= 0 for x in v),
-    ),
-}
-_REQUIRED = ("scene", "policy", "feature", "seed", *_FIELDS)
-
-
-def _check_record(record: object, index: int) -> None:
-    """Raise :class:`ExplorationReportError` naming the record and field on a bad record."""
-    if not isinstance(record, Mapping):
-        raise ExplorationReportError(f"episode {index} is a {type(record).__name__}, not a dict")
-    where = _where(record, index)
-    missing = [k for k in _REQUIRED if k not in record]
-    if missing:
-        raise ExplorationReportError(f"{where} lacks {', '.join(missing)}")
-    if record["scene"] not in SCENES:
-        raise ExplorationReportError(
-            f"{where}: unknown scene {record['scene']!r}; valid: {', '.join(SCENES)}"
-        )
-    if record["feature"] not in FEATURES:
-        raise ExplorationReportError(
-            f"{where}: unknown feature {record['feature']!r}; valid: {', '.join(FEATURES)}"
-        )
-    if not isinstance(record["policy"], str) or not record["policy"]:
-        raise ExplorationReportError(f"{where}: policy must be a non-empty str")
-    if not _is_int(record["seed"]):
-        raise ExplorationReportError(f"{where}: seed must be an int, got {record['seed']!r}")
-    for key, (what, ok) in _FIELDS.items():
-        if not ok(record[key]):
-            raise ExplorationReportError(f"{where}: {key} must be {what}, got {record[key]!r}")
-    tp, fp, nf = (record[k] for k in ("true_positives", "false_positives", "not_found"))
-    if tp + nf != record["n_database"]:
-        raise ExplorationReportError(
-            f"{where}: true_positives + not_found = {tp + nf} but n_database = "
-            f"{record['n_database']} (every database instance is found or not found)"
-        )
-    if sum(record["fp_reasons"].values()) != fp:
-        raise ExplorationReportError(
-            f"{where}: fp_reasons {dict(record['fp_reasons'])} do not add up to "
-            f"false_positives = {fp}"
-        )
-    expected = tp / (tp + fp + nf) if tp + fp + nf else 1.0
-    if abs(record["performance"] - expected) > 1e-6:
-        raise ExplorationReportError(
-            f"{where}: performance {record['performance']} is not TP / (TP + FP + not found) "
-            f"= {expected:.6f}"
-        )
-    if record["recovered"] > tp:
-        raise ExplorationReportError(f"{where}: recovered {record['recovered']} > TP {tp}")
-    if len(record["localisation_mm"]) != tp:
-        raise ExplorationReportError(
-            f"{where}: localisation_mm has {len(record['localisation_mm'])} errors for {tp} "
-            "true positives (one per true positive)"
-        )
-    if len(record["recall_curve"]) != record["saccades"] + 1:
-        raise ExplorationReportError(
-            f"{where}: recall_curve has {len(record['recall_curve'])} values for "
-            f"{record['saccades']} saccades (k = 0..saccades: saccades + 1 values)"
-        )
-
-
-def _ordered(names: Iterable[str], preferred: Sequence[str]) -> list[str]:
-    """``names`` in ``preferred`` order, the others after in alphabetical order."""
-    names = set(names)
-    return [n for n in preferred if n in names] + sorted(names - set(preferred))
-
-
-Groups = dict[str, dict[str, dict[str, list[Mapping]]]]
-
-
-def _group(episodes: Sequence[Mapping]) -> Groups:
-    """``{scene: {policy: {feature: [record, ...]}}}`` in display order, records by seed."""
-    cells: dict[tuple[str, str, str], dict[int, Mapping]] = {}
-    for i, ep in enumerate(episodes):
-        _check_record(ep, i)
-        runs = cells.setdefault((ep["scene"], ep["policy"], ep["feature"]), {})
-        if ep["seed"] in runs:
-            raise ExplorationReportError(
-                f"two records of scene={ep['scene']!r}, policy={ep['policy']!r}, "
-                f"feature={ep['feature']!r}, seed={ep['seed']} (the second is episode {i}); "
-                "remove the duplicate"
-            )
-        runs[int(ep["seed"])] = ep
-    out: Groups = {}
-    for scene in _ordered({k[0] for k in cells}, SCENES):
-        out[scene] = {}
-        for policy in _ordered({k[1] for k in cells if k[0] == scene}, _POLICY_ORDER):
-            feats = _ordered({k[2] for k in cells if k[:2] == (scene, policy)}, FEATURES)
-            out[scene][policy] = {
-                f: [cells[scene, policy, f][s] for s in sorted(cells[scene, policy, f])]
-                for f in feats
-            }
-    return out
-
-
 # --------------------------------------------------------------------------- summary
 
 
@@ -270,8 +128,7 @@ def recall_auc(curve: Sequence[float], budget: int) -> float:
     ExplorationReportError
         On ``budget < 1`` or an empty curve.
     """
-    if not _is_int(budget) or budget < 1:
-        raise ExplorationReportError(f"budget must be an int >= 1 (saccades), got {budget!r}")
+    check_budget(budget)
     if len(curve) == 0:
         raise ExplorationReportError("recall_auc needs a non-empty recall curve")
     r = _held_curve(curve, budget)
@@ -293,7 +150,7 @@ def _cell_summary(runs: Sequence[Mapping], budget: int) -> dict:
         "n": len(runs),
         "seeds": [int(ep["seed"]) for ep in runs],
         **{k: sum(int(ep[k]) for ep in runs) for k in _COUNTS},
-        "fp_reasons": {r: sum(int(ep["fp_reasons"][r]) for ep in runs) for r in _FP_REASONS},
+        "fp_reasons": {r: sum(int(ep["fp_reasons"][r]) for ep in runs) for r in FP_REASONS},
         "recall_auc": float(np.mean([recall_auc(ep["recall_curve"], budget) for ep in runs])),
         "found_all": len(found_all),
         "saccades_to_all_mean": _mean_or_none([ep["saccades_to_all"] for ep in found_all]),
@@ -382,9 +239,8 @@ def summarize_exploration(episodes: Sequence[Mapping], budget: int) -> dict:
     """
     if not episodes:
         raise ExplorationReportError("the exploration report needs at least one record, got none")
-    if not _is_int(budget) or budget < 1:
-        raise ExplorationReportError(f"budget must be an int >= 1 (saccades), got {budget!r}")
-    return _summarize(_group(episodes), budget)
+    check_budget(budget)
+    return _summarize(group_records(episodes), budget)
 
 
 # --------------------------------------------------------------------------- figure
@@ -393,7 +249,7 @@ def summarize_exploration(episodes: Sequence[Mapping], budget: int) -> dict:
 def _recall_png(path: Path, groups: Groups, budget: int) -> None:
     """Mean recall over seeds vs saccades, a panel per scene, a line per (policy, feature)."""
     scenes = list(groups)
-    policies = _ordered({p for s in scenes for p in groups[s]}, _POLICY_ORDER)
+    policies = ordered({p for s in scenes for p in groups[s]}, POLICY_ORDER)
     colour = {p: f"C{i % 10}" for i, p in enumerate(policies)}
     style = dict(zip(FEATURES, ("-", "--", "-.", ":"), strict=True))
     fig = Figure(figsize=(3.6 * len(scenes) + 1.6, 3.4), dpi=_DPI)
@@ -601,9 +457,8 @@ def write_exploration_report(
     """
     if not episodes:
         raise ExplorationReportError("the exploration report needs at least one record, got none")
-    if not _is_int(budget) or budget < 1:
-        raise ExplorationReportError(f"budget must be an int >= 1 (saccades), got {budget!r}")
-    groups = _group(episodes)
+    check_budget(budget)
+    groups = group_records(episodes)
     summary = _summarize(groups, budget)
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
@@ -615,7 +470,7 @@ def write_exploration_report(
     lines = [f"# {title}", "", _HOW_TO_READ, "", _FEATURE_NOTE, ""]
     lines += ["Thesis figures (pooled over the thesis' own scenes, not ours):", ""]
     lines += [*_thesis_table(), ""]
-    features = _ordered({f for s in summary.values() for p in s.values() for f in p}, FEATURES)
+    features = ordered({f for s in summary.values() for p in s.values() for f in p}, FEATURES)
     for feature in features:
         lines += [f"## {feature.upper()}: objects found (Tables 3.2/3.3 layout)", ""]
         for scene, by_policy in summary.items():
