@@ -30,7 +30,15 @@ from ipbench.eval.files import ensure_writable
 from ipbench.eval.schedule import longest_first, pool_worker, single_thread_worker
 from ipbench.eval.workers import run_tasks
 
-__all__ = ["BACKENDS", "EpisodeLog", "check_out", "load_episodes", "run_episodes"]
+__all__ = [
+    "BACKENDS",
+    "EpisodeLog",
+    "check_out",
+    "load_episodes",
+    "open_run",
+    "record_episodes",
+    "run_episodes",
+]
 
 BACKENDS: tuple[str, ...] = ("process", "ray")
 """Where episodes run when ``workers > 1``: local worker processes, or Ray tasks."""
@@ -150,6 +158,45 @@ class EpisodeLog:
             )
             with self.path.open("r+b") as f:
                 f.truncate(cut)
+
+
+def open_run(
+    out: Path,
+    fingerprint: str,
+    info: dict,
+    key: Callable[[dict], Hashable],
+    error: type[Exception] = ValueError,
+) -> EpisodeLog:
+    """Check ``out`` (:func:`check_out`), write ``run.json`` (the fingerprint and ``info``) and
+    return the run's episode log."""
+    check_out(out, fingerprint, error)
+    run = {"fingerprint": fingerprint, **info}
+    (out / "run.json").write_text(json.dumps(run, indent=2, default=str))
+    return EpisodeLog(out / "episodes.jsonl", key)
+
+
+def record_episodes(
+    log: EpisodeLog,
+    records: Iterable[dict],
+    total: int,
+    done: int,
+    describe: Callable[[dict], str],
+    progress: bool = True,
+) -> None:
+    """Append ``records`` (``total`` of them; ``done`` were finished before) to ``log`` under a
+    progress bar whose postfix is ``describe(record)``, then sort the log."""
+    from tqdm import tqdm
+
+    if done:
+        print(f"ipbench: resuming: {done} episodes already in {log.path}, {total} to run")
+    with tqdm(total=total, desc="episodes", unit="ep", disable=not progress) as bar:
+
+        def advance(record: dict) -> None:
+            bar.set_postfix_str(describe(record))
+            bar.update()
+
+        log.append(records, each=advance)
+    log.sort()
 
 
 # -- executors ------------------------------------------------------------------------------------

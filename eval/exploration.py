@@ -25,11 +25,10 @@ from pathlib import Path
 import gymnasium as gym
 import numpy as np
 from threadpoolctl import threadpool_limits
-from tqdm import tqdm
 
 import ipbench.envs  # noqa: F401  (registers the environments)
 from ipbench.envs.exploration_scene import LEVELS
-from ipbench.eval.episodes import BACKENDS, EpisodeLog, check_out, run_episodes
+from ipbench.eval.episodes import BACKENDS, check_out, open_run, record_episodes, run_episodes
 from ipbench.eval.exploration_database import DatabaseCaptureConfig, load_or_build_database
 from ipbench.perception.features2d import FEATURE_TYPES
 from ipbench.perception.object_database import ObjectDatabase
@@ -312,20 +311,18 @@ def run_exploration_eval(
         f: load_or_build_database(f, Path(cache), config.database, progress)
         for f in config.features
     }
-    (out / "run.json").write_text(
-        json.dumps(
-            {
-                "fingerprint": fingerprint,
-                "env": ENV_ID,
-                "policy_version": EXPLORATION_POLICY_VERSION,
-                "databases": {f: d.stats() for f, d in databases.items()},
-                "config": asdict(config),
-            },
-            indent=2,
-            default=str,
-        )
+    log = open_run(
+        out,
+        fingerprint,
+        {
+            "env": ENV_ID,
+            "policy_version": EXPLORATION_POLICY_VERSION,
+            "databases": {f: d.stats() for f, d in databases.items()},
+            "config": asdict(config),
+        },
+        _record_key,
+        ExplorationEvalError,
     )
-    log = EpisodeLog(out / "episodes.jsonl", _record_key)
     done = log.done()
     first = min(config.seeds)
     tasks = [
@@ -344,29 +341,24 @@ def run_exploration_eval(
         for seed in config.seeds
         if (scene, policy, feature, int(seed)) not in done
     ]
-    if done:
-        print(f"ipbench: resuming: {len(done)} episodes already in {log.path}, {len(tasks)} to run")
-    with tqdm(total=len(tasks), desc="episodes", unit="ep", disable=not progress) as bar:
-
-        def advance(record: dict) -> None:
-            bar.set_postfix_str(
-                f"{record['scene']} {record['policy']} {record['feature']} "
-                f"{record['performance']:.0%}"
-            )
-            bar.update()
-
-        records = run_episodes(
-            run_exploration_episode,
-            tasks,
-            (databases, config),
-            workers=config.workers,
-            backend=config.backend,
-            ray_address=config.ray_address,
-            cost=_cost,
-            error=ExplorationEvalError,
-        )
-        log.append(records, each=advance)
-    log.sort()
+    records = run_episodes(
+        run_exploration_episode,
+        tasks,
+        (databases, config),
+        workers=config.workers,
+        backend=config.backend,
+        ray_address=config.ray_address,
+        cost=_cost,
+        error=ExplorationEvalError,
+    )
+    record_episodes(
+        log,
+        records,
+        len(tasks),
+        len(done),
+        lambda r: f"{r['scene']} {r['policy']} {r['feature']} {r['performance']:.0%}",
+        progress,
+    )
     wanted = {(s, p, f, int(k)) for s in config.scenes for p in config.policies
               for f in config.features for k in config.seeds}  # fmt: skip
     episodes = [e for e in log.records() if _record_key(e) in wanted]

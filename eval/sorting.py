@@ -36,7 +36,7 @@ import ipbench.envs  # noqa: F401  (registers the environments)
 from ipbench.assets.objects import CATEGORIES
 from ipbench.envs.layout import SCENES, STANDARD_SCENES
 from ipbench.envs.sorting import workcell_places
-from ipbench.eval.episodes import BACKENDS, EpisodeLog, check_out, run_episodes
+from ipbench.eval.episodes import BACKENDS, open_run, record_episodes, run_episodes
 from ipbench.eval.perception import PerceptionEvalConfig, model_key, trained_models
 from ipbench.eval.prepare import prepare_perception
 from ipbench.eval.schedule import longest_first, task_cost
@@ -569,22 +569,19 @@ def run_sorting_eval(
         for name in ("gp", "svm", "gp_hand", "svm_hand")
     }
     fingerprint = config.fingerprint(json.dumps([keys, models.thresholds], sort_keys=True))
-    check_out(out, fingerprint, SortingEvalError)
-    (out / "run.json").write_text(
-        json.dumps(
-            {
-                "fingerprint": fingerprint,
-                "policy_version": POLICY_VERSION,
-                "thresholds": models.thresholds,
-                "model_keys": keys,
-                "perception_key": model_key(config.perception, CATEGORIES),
-                "config": asdict(config),
-            },
-            indent=2,
-            default=str,
-        )
+    log = open_run(
+        out,
+        fingerprint,
+        {
+            "policy_version": POLICY_VERSION,
+            "thresholds": models.thresholds,
+            "model_keys": keys,
+            "perception_key": model_key(config.perception, CATEGORIES),
+            "config": asdict(config),
+        },
+        _record_key,
+        SortingEvalError,
     )
-    log = EpisodeLog(out / "episodes.jsonl", _record_key)
     done = log.done()
     first_seed = min(config.seeds)
     tasks = [
@@ -601,16 +598,14 @@ def run_sorting_eval(
         for seed in config.seeds
         if (scene, policy, int(seed)) not in done
     ]
-    if done:
-        print(f"ipbench: resuming: {len(done)} episodes already in {log.path}, {len(tasks)} to run")
-    with tqdm(total=len(tasks), desc="episodes", unit="ep", disable=not progress) as bar:
-
-        def advance(record: dict) -> None:
-            bar.set_postfix_str(f"{record['scene']} {record['policy']} {record['accuracy']:.0%}")
-            bar.update()
-
-        log.append(_executor(config)(tasks, models, config), each=advance)
-    log.sort()
+    record_episodes(
+        log,
+        _executor(config)(tasks, models, config),
+        len(tasks),
+        len(done),
+        lambda r: f"{r['scene']} {r['policy']} {r['accuracy']:.0%}",
+        progress,
+    )
     episodes = [
         e
         for e in log.records()
