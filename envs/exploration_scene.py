@@ -54,6 +54,7 @@ __all__ = [
     "database_instance",
     "sample_scene",
     "table_height",
+    "table_top",
 ]
 
 DATABASE_CLASSES: tuple[str, ...] = (
@@ -179,8 +180,19 @@ def _model() -> mujoco.MjModel:
     return build_workcell_spec().compile()
 
 
+@cache
+def table_top() -> tuple[np.ndarray, np.ndarray]:
+    """The work table's top: (centre (3,), half extents (3,)) in the world, m (the cell's
+    model, site ``work_table_top``)."""
+    model = _model()
+    data = mujoco.MjData(model)
+    mujoco.mj_kinematics(model, data)
+    return data.site("work_table_top").xpos.copy(), model.site("work_table_top").size.copy()
+
+
 def table_height() -> float:
-    return float(_model().site("work_table_top").pos[2])
+    """Height of the work table's top in the world, m (the cell's model)."""
+    return float(table_top()[0][2])
 
 
 def _circle(inst: ObjectInstance, quat) -> tuple[np.ndarray, float]:

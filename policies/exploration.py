@@ -61,9 +61,11 @@ EXPLORATION_POLICIES: tuple[str, ...] = (
     "oracle-gaze",
 )
 """Policy names of the exploration benchmark."""
-EXPLORATION_POLICY_VERSION = 1
+EXPLORATION_POLICY_VERSION = 2
 """Version of what the exploration policies do with an observation (part of a run's
-fingerprint: results of other policy code are never mixed with this one's)."""
+fingerprint: results of other policy code are never mixed with this one's). 2: a candidate
+triangulated off the work table is dropped (a false correspondence; version 1 could report a
+point outside the env's bounds)."""
 READS_INFO: frozenset[str] = frozenset({"oracle-gaze"})
 """The policies that read ``info`` (ground truth)."""
 HALT_AFTER = 5

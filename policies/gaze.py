@@ -15,13 +15,25 @@ from __future__ import annotations
 
 import numpy as np
 
-from ipbench.envs.exploration_scene import FRONT_AREA, aim_head, table_height
+from ipbench.envs.exploration_scene import FRONT_AREA, aim_head, table_height, table_top
 from ipbench.envs.ptu import ptu_spec
 
-__all__ = ["TABLE_AREA", "aim", "clip_gaze", "pixel_on_table", "table_point", "verge_right"]
+__all__ = [
+    "OBJECT_HEIGHT_M",
+    "TABLE_AREA",
+    "aim",
+    "clip_gaze",
+    "on_table",
+    "pixel_on_table",
+    "table_point",
+    "verge_right",
+]
 
 TABLE_AREA = FRONT_AREA
 """((x0, x1), (y0, y1)) world m: the part of the work table the scenes use (the cell's model)."""
+OBJECT_HEIGHT_M = 0.5
+"""Nothing on the table stands higher than this above it (m): the catalogue's tallest products,
+2 L cartons and bottles, are about 0.3 m."""
 
 
 def clip_gaze(gaze: np.ndarray) -> np.ndarray:
@@ -62,3 +74,12 @@ def verge_right(gaze: np.ndarray, correction: float) -> np.ndarray:
     out = np.array(gaze, float)
     out[2] -= correction
     return clip_gaze(out)
+
+
+def on_table(point: np.ndarray, margin: float = 0.05) -> bool:
+    """Whether world ``point`` (3,) can be on an object on the work table: over the table's top
+    (grown by ``margin`` m) and between its surface and :data:`OBJECT_HEIGHT_M` above it. A
+    triangulated point elsewhere comes from a false left/right correspondence."""
+    centre, half = table_top()
+    p = np.asarray(point, float) - centre
+    return bool(np.all(np.abs(p[:2]) <= half[:2] + margin) and -margin <= p[2] <= OBJECT_HEIGHT_M)

@@ -7,7 +7,8 @@ correspondence of the hypotheses (same class, epipolar agreement:
 :func:`~ipbench.perception.stereo.match_hypotheses`) and each pair's world position by
 triangulation (:func:`~ipbench.perception.stereo.hypothesis_position`), with the cameras' K and
 poses as the robot knows them (the observation's). A hypothesis seen by one eye only has no
-3-D place and is not a :class:`Candidate`.
+3-D place and is not a :class:`Candidate`; nor is a pair whose triangulated place is off the
+work table (:func:`~ipbench.policies.gaze.on_table`: a false correspondence).
 """
 
 from __future__ import annotations
@@ -20,6 +21,7 @@ from ipbench.perception.features2d import DEFAULT_MAX_FEATURES, Features, detect
 from ipbench.perception.object_database import ObjectDatabase
 from ipbench.perception.recognition import Recognition, RecognitionConfig, recognise
 from ipbench.perception.stereo import StereoRig, hypothesis_position, match_hypotheses
+from ipbench.policies.gaze import on_table
 
 __all__ = ["Candidate", "Look", "look"]
 
@@ -77,7 +79,7 @@ def look(
     for i, j in match_hypotheses(rec_l.hypotheses, rec_r.hypotheses, rig):
         hl, hr = rec_l.hypotheses[i], rec_r.hypotheses[j]
         position = hypothesis_position(hl, hr, rig, left, right)
-        if np.all(np.isfinite(position)):
+        if np.all(np.isfinite(position)) and on_table(position):
             candidates.append(Candidate(hl.class_name, position, hl.centre.copy(), hl.inliers))
     candidates.sort(key=lambda c: -c.inliers)
     return Look(left, right, rec_l, rec_r, rig, tuple(candidates))

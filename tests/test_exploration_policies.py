@@ -151,3 +151,14 @@ def test_active_vision_halts_after_saccades_without_an_object(database):
     assert kinds[-1] == 2, "never halted"
     misses = [f for f in policy.fixations if f.kind in ("salient", "random")]
     assert len(misses) >= HALT_AFTER - 1
+
+
+def test_a_point_off_the_work_table_is_no_object_there():
+    from ipbench.envs.exploration_scene import table_top
+    from ipbench.policies.gaze import OBJECT_HEIGHT_M, on_table
+
+    centre, half = table_top()
+    assert on_table(centre + [0, 0, 0.1]) and on_table(centre + [half[0], -half[1], 0.0])
+    assert not on_table(centre + [0, 0, OBJECT_HEIGHT_M + 0.01])  # above anything on it
+    assert not on_table(centre + [half[0] + 0.1, 0, 0.1])  # beside the table
+    assert not on_table([10.47, -1.51, -8.11])  # a false correspondence seen in a run
