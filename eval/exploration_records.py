@@ -14,6 +14,8 @@ from numbers import Integral, Real
 __all__ = [
     "FEATURES",
     "FP_REASONS",
+    "PAIRED_KEY",
+    "PROPOSED",
     "POLICY_ORDER",
     "SCENES",
     "ExplorationReportError",
@@ -30,6 +32,10 @@ FEATURES: tuple[str, ...] = ("sift", "kaze", "akaze", "orb")
 """Feature types, in display order (``ipbench.perception.features2d.FEATURE_TYPES``)."""
 POLICY_ORDER = ("active-vision", "oracle-gaze", "raster-scan", "random-gaze")
 FP_REASONS = ("wrong_class", "already_reported", "nothing_there")
+PROPOSED = "active-vision"
+"""The policy the report compares with every other (paired over seeds)."""
+PAIRED_KEY = "vs_active_vision"
+"""The key of a baseline cell's paired test against :data:`PROPOSED` in ``summary.json``."""
 
 
 class ExplorationReportError(ValueError):
