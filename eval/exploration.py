@@ -8,9 +8,10 @@ Policies x feature types x scenes x seeds, the same seeds for every policy (pair
    (:mod:`ipbench.eval.episodes`: the resumable ``episodes.jsonl``, ``run.json``'s fingerprint,
    serial / process / Ray executors), each record written as soon as it finishes.
 3. ``summary.json``, ``exploration.md`` and ``recall.png``
-   (:mod:`ipbench.eval.exploration_report`), and optionally one MP4 per policy, feature and
-   scene (its first seed) of the left head view with the hypotheses, the fixation and the
-   inhibited places (:mod:`ipbench.eval.exploration_video`).
+   (:mod:`ipbench.eval.exploration_report`) over every episode in the folder (runs of other
+   scenes, policies, feature types or seeds with the same settings add up), and optionally
+   one MP4 per policy, feature and scene (its first seed) of the left head view with the
+   hypotheses, the fixation and the inhibited places (:mod:`ipbench.eval.exploration_video`).
 """
 
 from __future__ import annotations
@@ -359,8 +360,7 @@ def run_exploration_eval(
         lambda r: f"{r['scene']} {r['policy']} {r['feature']} {r['performance']:.0%}",
         progress,
     )
-    wanted = {(s, p, f, int(k)) for s in config.scenes for p in config.policies
-              for f in config.features for k in config.seeds}  # fmt: skip
-    episodes = [e for e in log.records() if _record_key(e) in wanted]
-    write_exploration_report(episodes, out, config.saccade_budget)
+    # the report covers every episode in the folder (all of one fingerprint): a benchmark run
+    # in parts (a feature type at a time, say) ends with one report of all of them
+    write_exploration_report(log.records(), out, config.saccade_budget)
     return json.loads((out / "summary.json").read_text())

@@ -79,6 +79,10 @@ def test_a_small_run_writes_the_report_and_resumes(tmp_path, capsys):
     run_exploration_eval(out, cache, SMALL, progress=False)
     assert "2 episodes already in" in capsys.readouterr().out
     assert len((out / "episodes.jsonl").read_text().splitlines()) == 2
+    # another policy with the same settings adds up: the report covers the whole folder
+    more = ExplorationEvalConfig(**{**SMALL.__dict__, "policies": ("random-gaze",)})
+    summary = run_exploration_eval(out, cache, more, progress=False)
+    assert set(summary["simple"]) == {"active-vision", "oracle-gaze", "random-gaze"}
     # another configuration into the same folder is refused
     other = ExplorationEvalConfig(**{**SMALL.__dict__, "saccade_budget": 4})
     with pytest.raises(ExplorationEvalError, match="another configuration"):
