@@ -41,7 +41,7 @@ from ipbench.envs.exploration_scene import (
     sample_scene,
 )
 from ipbench.envs.exploration_scoring import GroundTruthObject, Scorer
-from ipbench.envs.ptu import PtuSpec, head_spec_arrays, ptu_spec, setpoint_step
+from ipbench.envs.ptu import PtuError, PtuSpec, head_spec_arrays, ptu_spec, setpoint_step
 from ipbench.envs.sensors import SensorRenderer, camera_pose, intrinsics
 from ipbench.envs.sorting import InvalidActionError, ResetNeededError
 
@@ -214,13 +214,15 @@ class ExplorationEnv(gym.Env):
             raise InvalidActionError(
                 f"action['gaze'] = {action['gaze']!r}: 4 finite angles (rad) {list(GAZE_JOINTS)}"
             )
-        for k, joint in enumerate(GAZE_JOINTS):
-            if not self._lower[k] <= gaze[k] <= self._upper[k]:
+        for k, ptu in enumerate(self.ptus):
+            try:
+                ptu.check(gaze[2 * k : 2 * k + 2])  # the PTU's own limits (envs/ptu.py)
+            except PtuError as err:
+                joints = ", ".join(GAZE_JOINTS[2 * k : 2 * k + 2])
                 raise InvalidActionError(
-                    f"action['gaze'][{k}] ({joint}) = {gaze[k]:.4f} rad is outside the PTU "
-                    f"limits [{self._lower[k]:.4f}, {self._upper[k]:.4f}] rad "
-                    f"([{np.degrees(self._lower[k]):.1f}, {np.degrees(self._upper[k]):.1f}] deg)"
-                )
+                    f"action['gaze'][{2 * k}:{2 * k + 2}] ({joints}) is outside the PTU "
+                    f"limits: {err}"
+                ) from err
         report = action["report"]
         rkeys = sorted(self.action_space["report"].spaces)
         if not isinstance(report, dict) or sorted(report) != rkeys:
