@@ -1,4 +1,4 @@
-"""2-D local features for the active-vision behaviours (thesis ch. 3 §3.3): detect, match.
+"""2-D local features for the active-vision behaviours (thesis ch. 3 §3.3): detect, describe.
 
 The thesis compares SIFT, SURF and KAZE on the Nikon/PTU head (Table 3.3: SIFT 77 %, KAZE 83 %,
 SURF 60 %). SURF is patented ("non-free") and is in no pip wheel of OpenCV (it needs a build of
@@ -20,10 +20,7 @@ Settings (OpenCV's defaults unless said; no value was tuned on any result):
 KAZE and AKAZE have no feature budget of their own: :func:`detect` keeps the ``max_features``
 strongest responses of every type (a stable sort, so equal inputs give equal outputs).
 
-Matching: the two nearest neighbours by brute force (exact, hence deterministic;
-``cv2.batchDistance``, the kernel of ``cv2.BFMatcher``), kept when
-the nearest is closer than :data:`LOWE_RATIO` = 0.8 times the second (Lowe 2004, §7.1: this
-"eliminates 90 % of the false matches while discarding less than 5 % of the correct" ones).
+Matching the features is :mod:`ipbench.perception.matching`'s.
 
 Keypoint ``angle`` is in degrees as OpenCV reports it, the same sense for all four types (a
 test checks it): a patch turned by ``theta`` in the image plane, i.e. ``p -> R(theta) p`` with
@@ -43,20 +40,16 @@ from ipbench.perception.cloud import PerceptionError
 __all__ = [
     "DEFAULT_MAX_FEATURES",
     "FEATURE_TYPES",
-    "LOWE_RATIO",
     "ActiveVisionError",
     "Features",
     "detect",
     "make_detector",
-    "match",
-    "match_many",
     "norm_of",
     "to_gray",
 ]
 
 FEATURE_TYPES = ("sift", "kaze", "akaze", "orb")
 DEFAULT_MAX_FEATURES = 2000  # per image; a budget for the <= 0.5 s saccade cycle (issue 13)
-LOWE_RATIO = 0.8  # Lowe 2004, §7.1
 _NORMS = {
     "sift": cv2.NORM_L2,
     "kaze": cv2.NORM_L2,
@@ -203,100 +196,3 @@ def detect(
     return Features(
         feature_type, xy[order], size[order], angle[order], response[order], descriptors[order]
     )
-
-
-def match(query: Features, train: Features, ratio: float = LOWE_RATIO) -> np.ndarray:
-    """Lowe's ratio-test matches of ``query`` to ``train``: (M, 2) int64 ``(query, train)`` indices.
-
-    A query feature is kept when its nearest train descriptor is closer than ``ratio`` times
-    the second nearest; with fewer than two train features no ratio can be taken and nothing
-    matches. Rows are in query order.
-    """
-    if query.feature_type != train.feature_type:
-        raise ActiveVisionError(
-            f"cannot match {query.feature_type} features to {train.feature_type} features;"
-            " valid: features of the same type"
-        )
-    if not 0.0 < ratio <= 1.0:
-        raise ActiveVisionError(f"ratio is {ratio!r}; valid: 0 < ratio <= 1 (Lowe: 0.8)")
-    if len(query) == 0 or len(train) < 2:
-        return np.zeros((0, 2), np.int64)
-    norm = norm_of(query.feature_type)
-    # cv2.batchDistance with K = 2 is the exact 2-NN search that cv2.BFMatcher.knnMatch runs
-    # (same distance kernels, same order, same distances: Hamming as int32, L2 as float32),
-    # minus the per-match DMatch objects, which made Python the bottleneck (issue 13)
-    dtype = cv2.CV_32S if norm == cv2.NORM_HAMMING else cv2.CV_32F  # as BFMatcher
-    dist, nidx = cv2.batchDistance(query.descriptors, train.descriptors, dtype, normType=norm, K=2)
-    dist = dist.astype(np.float64)  # DMatch.distance is a float32, compared as a Python float
-    keep = (nidx[:, 1] >= 0) & (dist[:, 0] < ratio * dist[:, 1])
-    rows = np.flatnonzero(keep)
-    return np.stack([rows, nidx[rows, 0]], axis=1).astype(np.int64).reshape(-1, 2)
-
-
-_EXACT_SQ = 2.0**22  # float32 sums of integers below 2**24 are exact; |a|^2 + |b|^2 stays below
-_BLOCK = 4096  # train descriptors per matrix product: (Q, 4096) float32 blocks, <= 33 MB
-
-
-def _integer_valued(descriptors: np.ndarray) -> bool:
-    """True when float descriptors are small non-negative integers (OpenCV's SIFT stores its
-    bytes as floats), so that a float32 matrix product gives their squared distances exactly."""
-    d = descriptors
-    return bool(
-        d.dtype == np.float32
-        and len(d)
-        and d.min() >= 0
-        and np.array_equal(d, np.rint(d))
-        and float(np.max(np.einsum("ij,ij->i", d, d, dtype=np.float64))) < _EXACT_SQ
-    )
-
-
-def match_many(
-    query: Features, trains: list[Features] | tuple[Features, ...], ratio: float = LOWE_RATIO
-) -> list[np.ndarray]:
-    """:func:`match` of ``query`` to each of ``trains``: the same (M_i, 2) arrays, exactly.
-
-    Integer-valued float descriptors (SIFT's) take their squared L2 distances from one float32
-    matrix product per block of train descriptors (exact for integers: every partial sum is an
-    integer below 2**24), then the same float32 square root and ratio test as the brute-force
-    matcher; other descriptors go through :func:`match` one train set at a time.
-    """
-    trains = list(trains)
-    if any(t.feature_type != query.feature_type for t in trains):
-        raise ActiveVisionError(
-            f"cannot match {query.feature_type} features to"
-            f" {sorted({t.feature_type for t in trains})} features; valid: features of the"
-            " same type"
-        )
-    if not 0.0 < ratio <= 1.0:
-        raise ActiveVisionError(f"ratio is {ratio!r}; valid: 0 < ratio <= 1 (Lowe: 0.8)")
-    empty = np.zeros((0, 2), np.int64)
-    out = [empty] * len(trains)
-    use = [i for i, t in enumerate(trains) if len(t) >= 2]
-    if len(query) == 0 or not use:
-        return out
-    fast = _integer_valued(query.descriptors) and all(
-        _integer_valued(trains[i].descriptors) for i in use
-    )
-    if not fast:
-        return [match(query, t, ratio) for t in trains]
-    q = query.descriptors
-    q_sq = np.einsum("ij,ij->i", q, q)
-    k = 0
-    while k < len(use):  # blocks of whole train sets, about _BLOCK descriptors each
-        block, size = [], 0
-        while k < len(use) and (not block or size + len(trains[use[k]]) <= _BLOCK):
-            block.append(use[k])
-            size += len(trains[use[k]])
-            k += 1
-        t = np.concatenate([trains[i].descriptors for i in block])
-        d2 = q_sq[:, None] + np.einsum("ij,ij->i", t, t)[None, :] - 2.0 * (q @ t.T)
-        start = 0
-        for i in block:
-            part = d2[:, start : start + len(trains[i])]
-            start += len(trains[i])
-            nearest = np.argmin(part, axis=1)
-            two = np.partition(part, 1, axis=1)[:, :2]
-            dist = np.sqrt(two).astype(np.float64)  # float32 sqrt, as the matcher's
-            rows = np.flatnonzero(dist[:, 0] < ratio * dist[:, 1])
-            out[i] = np.stack([rows, nearest[rows]], axis=1).astype(np.int64).reshape(-1, 2)
-    return out

@@ -17,6 +17,7 @@ import os
 import zipfile
 from collections.abc import Iterable
 from dataclasses import dataclass
+from functools import cached_property
 
 import cv2
 import numpy as np
@@ -28,6 +29,7 @@ from ipbench.perception.features2d import (
     Features,
     detect,
 )
+from ipbench.perception.matching import TrainSet
 
 __all__ = [
     "FORMAT_VERSION",
@@ -135,6 +137,12 @@ class ObjectDatabase:
 
     def __len__(self) -> int:
         return len(self.views)
+
+    @cached_property
+    def train_set(self) -> TrainSet:
+        """The views' features, prepared once for :func:`~ipbench.perception.matching.match_many`
+        (in view order)."""
+        return TrainSet(tuple(v.features for v in self.views))
 
     @classmethod
     def build(

@@ -32,7 +32,8 @@ from dataclasses import dataclass, field
 import cv2
 import numpy as np
 
-from ipbench.perception.features2d import LOWE_RATIO, ActiveVisionError, Features, match_many
+from ipbench.perception.features2d import ActiveVisionError, Features
+from ipbench.perception.matching import LOWE_RATIO, match_many
 from ipbench.perception.object_database import ObjectDatabase
 
 __all__ = ["Hypothesis", "Recognition", "RecognitionConfig", "recognise"]
@@ -123,11 +124,14 @@ class _Votes:
 
 
 def _votes(
-    scene: Features, database: ObjectDatabase, views: list[int], config: RecognitionConfig
+    scene: Features,
+    database: ObjectDatabase,
+    views: list[int],
+    matches: list[np.ndarray],
+    config: RecognitionConfig,
 ) -> _Votes:
-    # matching per view (the ratio test is per view); the vote geometry in one vectorised
-    # pass over all views' matches, in view order
-    matches = match_many(scene, [database.views[vi].features for vi in views], config.ratio)
+    # ``matches[k]``: the scene's matches to view ``views[k]`` (the ratio test is per view);
+    # the vote geometry in one vectorised pass over all views' matches, in view order
     found = [(vi, pairs) for vi, pairs in zip(views, matches, strict=True) if len(pairs)]
     if not found:
         empty = np.zeros(0)
@@ -153,27 +157,36 @@ def _votes(
 
 def _hough_bins(
     votes: _Votes, model_size: float, config: RecognitionConfig
-) -> tuple[np.ndarray, np.ndarray]:
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Lowe's Hough transform: each vote goes into the 2 nearest bins of each of location x, y
     (width ``hough_fraction * model_size * scale``, the scale of its scale bin), orientation and
-    log-scale: 16 entries. Returns each entry's vote (16 n,) and bin id (16 n,)."""
-    n = len(votes.scene)
+    log-scale: 16 entries. Returns each entry's bin id (16 n,), bins numbered in increasing
+    key (as ``np.unique`` numbers them), the entries ordered by bin (16 n,) and each bin's
+    first position in that order (bins + 1,). Entry ``k n + i`` is vote ``i``'s ``k``-th."""
     fs = votes.log_scale / np.log2(config.max_scale_factor)
     fa = votes.angle / np.deg2rad(config.max_angle_deg)
     n_angle = int(round(360.0 / config.max_angle_deg))
-    keys, owners = [], []
-    for s_bin in _two_nearest(fs):
-        width = config.hough_fraction * model_size * config.max_scale_factor ** (s_bin + 0.5)
-        for a_bin in _two_nearest(fa):
-            for x_bin in _two_nearest(votes.centre[:, 0] / width):
-                for y_bin in _two_nearest(votes.centre[:, 1] / width):
-                    x = np.clip(x_bin, -(2**20), 2**20 - 1) + 2**20
-                    y = np.clip(y_bin, -(2**20), 2**20 - 1) + 2**20
-                    key = (x << 29) | (y << 8) | ((a_bin % n_angle) << 4) | (s_bin + 8)
-                    keys.append(key)
-                    owners.append(np.arange(n))
-    _, bin_of = np.unique(np.concatenate(keys), return_inverse=True)
-    return np.concatenate(owners), bin_of.ravel()
+    # the 16 entries of each vote by broadcasting over (scale, angle, x, y, vote): the order of
+    # four nested loops over the two nearest bins of each dimension
+    s_bin = np.stack(_two_nearest(fs))  # (2, n)
+    a_bin = np.stack(_two_nearest(fa)) % n_angle  # (2, n)
+    width = config.hough_fraction * model_size * config.max_scale_factor ** (s_bin + 0.5)
+    x_bin, y_bin = (
+        np.clip(np.stack(_two_nearest(votes.centre[:, k] / width), 1), -(2**20), 2**20 - 1) + 2**20
+        for k in (0, 1)
+    )  # (2 scale, 2 location, n)
+    key = (
+        (x_bin[:, None, :, None] << 29)
+        | (y_bin[:, None, None, :] << 8)
+        | (a_bin[None, :, None, None] << 4)
+        | (s_bin[:, None, None, None] + 8)
+    ).ravel()
+    by_bin = np.argsort(key)  # one sort; the order inside a bin does not matter
+    ordered = key[by_bin]
+    first = np.flatnonzero(np.r_[True, ordered[1:] != ordered[:-1]])
+    bin_of = np.empty(len(key), np.int64)
+    bin_of[by_bin] = np.repeat(np.arange(len(first)), np.diff(np.r_[first, len(key)]))
+    return bin_of, by_bin, np.r_[first, len(key)]
 
 
 def _two_nearest(value: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -198,8 +211,9 @@ def _verify(
     members: np.ndarray,
     config: RecognitionConfig,
 ) -> Hypothesis | None:
-    views, counts = np.unique(votes.view[members], return_counts=True)
-    vi = int(views[np.argmax(counts)])  # most votes; ties: the lowest view index
+    if len(members) < config.min_inliers:
+        return None
+    vi = int(np.argmax(np.bincount(votes.view[members])))  # most votes; ties: the lowest view
     chosen = members[votes.view[members] == vi]
     if len(np.unique(votes.scene[chosen])) < config.min_inliers:
         return None
@@ -235,25 +249,24 @@ def _cluster(
     found: list[Hypothesis] = []
     if len(votes.scene) < config.min_inliers:
         return found
-    owner, bin_of = _hough_bins(votes, model_size, config)
+    bin_of, by_bin, start = _hough_bins(votes, model_size, config)
     n = len(votes.scene)
     entries = bin_of.reshape(-1, n)  # entries[k, i]: the k-th of vote i's 16 bins
     # live entries per bin, kept up to date as votes retire (equal to a fresh bincount of the
     # live entries every round, without the O(16 n) pass per round)
-    counts = np.bincount(bin_of)
-    by_bin = np.argsort(bin_of, kind="stable")
-    start = np.searchsorted(bin_of[by_bin], np.arange(len(counts) + 1))
+    counts = np.diff(start)
+    owner = by_bin % n  # the vote of each entry, in bin order
     alive = np.ones(n, bool)
 
     def retire(index: np.ndarray) -> None:
         alive[index] = False
-        counts[:] -= np.bincount(entries[:, index].ravel(), minlength=len(counts))
+        np.subtract.at(counts, entries[:, index].ravel(), 1)
 
     while alive.sum() >= config.min_inliers:
         best = int(np.argmax(counts))  # ties: the lowest bin id (deterministic)
         if counts[best] < config.min_inliers:
             break
-        in_bin = owner[by_bin[start[best] : start[best + 1]]]
+        in_bin = owner[start[best] : start[best + 1]]
         members = np.unique(in_bin[alive[in_bin]])
         retire(members)
         hypothesis = _verify(scene, database, votes, members, config)
@@ -274,10 +287,11 @@ def recognise(
             " valid: detect the scene with the database's feature type"
         )
     candidates: list[Hypothesis] = []
+    matches = match_many(scene, database.train_set, config.ratio)
     for name in database.classes:
         views = [i for i, v in enumerate(database.views) if v.class_name == name]
         model_size = 2.0 * max(database.views[i].radius for i in views)
-        votes = _votes(scene, database, views, config)
+        votes = _votes(scene, database, views, [matches[i] for i in views], config)
         candidates += _cluster(scene, database, votes, model_size, config)
     candidates.sort(key=lambda h: (-h.inliers, -h.score, h.class_name, h.centre[0], h.centre[1]))
     kept: list[Hypothesis] = []

@@ -21,7 +21,8 @@ import cv2
 import numpy as np
 from scipy.optimize import linear_sum_assignment
 
-from ipbench.perception.features2d import ActiveVisionError, Features, match
+from ipbench.perception.features2d import ActiveVisionError, Features
+from ipbench.perception.matching import match
 from ipbench.perception.recognition import Hypothesis
 
 __all__ = [

@@ -27,7 +27,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ipbench.perception.features2d import LOWE_RATIO, ActiveVisionError, Features, match
+from ipbench.perception.features2d import ActiveVisionError, Features
+from ipbench.perception.matching import LOWE_RATIO, match
 
 __all__ = [
     "DISPARITY_BIN_PX",

@@ -14,10 +14,9 @@ from ipbench.perception.features2d import (
     FEATURE_TYPES,
     ActiveVisionError,
     detect,
-    match,
-    match_many,
     norm_of,
 )
+from ipbench.perception.matching import TrainSet, match, match_many
 
 ALPHABET = list("ABCDEFGHKMNPRSTXYZ0123456789")
 
@@ -158,6 +157,10 @@ def test_match_and_match_many_equal_the_brute_force_matcher(feature_type):
     trains = [detect(textured_patch(seed), feature_type) for seed in (1, 2, 3)]
     trains += [trains[0].subset(np.arange(1)), trains[1].subset(np.arange(0))]  # 1 and 0 kept
     many = match_many(query, trains)
+    prepared = TrainSet(tuple(trains))
+    assert prepared.exact_product == (feature_type == "sift")
+    for a, b in zip(match_many(query, prepared), many, strict=True):
+        np.testing.assert_array_equal(a, b)
     assert len(many) == len(trains) and len(many[0]) >= 30 and len(many[1]) >= 30
     for train, got in zip(trains, many, strict=True):
         expected = _bf_reference(query, train) if len(train) >= 2 else np.zeros((0, 2))
@@ -170,9 +173,16 @@ def test_match_and_match_many_equal_the_brute_force_matcher(feature_type):
 def test_sift_descriptors_take_the_exact_matrix_product_path():
     # OpenCV's SIFT stores bytes as floats: the product path applies and is exact (test above);
     # KAZE's real-valued descriptors do not qualify and use the brute-force kernel
-    from ipbench.perception.features2d import _integer_valued
+    from ipbench.perception.matching import _integer_valued
 
     assert _integer_valued(detect(textured_patch(1), "sift").descriptors)
     assert not _integer_valued(detect(textured_patch(1), "kaze").descriptors)
     assert not _integer_valued(np.array([[0.5, 1.0]], np.float32))
     assert not _integer_valued(np.full((1, 128), 2000.0, np.float32))  # sums beyond 2**22
+
+
+def test_a_train_set_holds_one_feature_type():
+    sets = [detect(textured_patch(1), "sift"), detect(textured_patch(1), "orb")]
+    with pytest.raises(ActiveVisionError, match="one type"):
+        TrainSet(tuple(sets))
+    assert match_many(sets[0], TrainSet(())) == []

@@ -7,6 +7,7 @@ import pytest
 from test_features2d import background, object_mask, paste, textured_patch
 
 from ipbench.perception.features2d import FEATURE_TYPES, ActiveVisionError, detect
+from ipbench.perception.matching import match_many
 from ipbench.perception.object_database import (
     DatabaseFileError,
     ObjectDatabase,
@@ -202,7 +203,8 @@ def test_incremental_hough_clustering_equals_recounting_every_round(database):
     for name in database.classes:
         views = [i for i, v in enumerate(database.views) if v.class_name == name]
         size = 2.0 * max(database.views[i].radius for i in views)
-        votes = r._votes(scene, database, views, config)
+        matches = match_many(scene, [database.views[i].features for i in views])
+        votes = r._votes(scene, database, views, matches, config)
         r._verify = spy
         try:
             fast = r._cluster(scene, database, votes, size, config)
@@ -210,7 +212,13 @@ def test_incremental_hough_clustering_equals_recounting_every_round(database):
             r._verify = verify
         plain = []
         if len(votes.scene) >= config.min_inliers:
-            owner, bin_of = r._hough_bins(votes, size, config)
+            bin_of, by_bin, start = r._hough_bins(votes, size, config)
+            owner = np.arange(len(bin_of)) % len(votes.scene)
+            # the bin order lists each bin's entries between its bounds, bins numbered densely
+            assert np.array_equal(np.sort(by_bin), np.arange(len(bin_of)))
+            assert np.array_equal(
+                bin_of[by_bin], np.repeat(np.arange(len(start) - 1), np.diff(start))
+            )
             alive = np.ones(len(votes.scene), bool)
             while alive.sum() >= config.min_inliers:
                 live = alive[owner]

@@ -1,0 +1,72 @@
+"""Compiled kernel of the exact descriptor matcher (numba, single-threaded, no fast-math).
+
+:func:`segment_two_nearest` does in one pass over a block of dot products what
+:func:`ipbench.perception.matching.match_many` did with a chain of numpy operations per train
+set (``d2 = |q|^2 + |t|^2 - 2 q.t``, then ``np.argmin`` and ``np.partition(d2, 1)[:, :2]`` over
+each train set's columns): the nearest column (the first one on ties, as ``np.argmin``) and the
+two smallest squared distances (the second equals the first on ties, as ``np.partition``).
+The squared distances are sums of integers below 2**24 in float32 (the caller checks it), so
+they are exact in any order of operations; the kernel takes them as int32 (exact), whose
+minimum reductions LLVM vectorises without fast-math (float ones it may not reorder), and its
+output is bit-identical to numpy's (``tests/test_features2d.py`` holds the matcher to OpenCV's
+brute-force one and ``tests/test_match_kernels.py`` the kernel to the numpy chain).
+Compiled on first use and cached next to this file (``cache=True``).
+"""
+
+from __future__ import annotations
+
+import numba
+import numpy as np
+
+__all__ = ["segment_two_nearest"]
+
+_jit = numba.njit(cache=True, nogil=True, error_model="numpy")
+
+
+@_jit
+def segment_two_nearest(
+    dots: np.ndarray, q_sq: np.ndarray, t_sq: np.ndarray, bounds: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Nearest column and two smallest squared distances per row and segment.
+
+    ``dots`` (Q, B) float32 are the dot products of Q query and B train descriptors,
+    ``q_sq`` (Q,) and ``t_sq`` (B,) float32 their squared norms, ``bounds`` (S + 1,) int64 the
+    segments' column bounds (increasing, ``bounds[0] = 0``, ``bounds[S] = B``; each segment has
+    at least two columns). Returns ``nearest`` (Q, S) int64 (column index within its segment),
+    ``first`` and ``second`` (Q, S) float32 squared distances.
+    """
+    n_q = dots.shape[0]
+    n_s = bounds.shape[0] - 1
+    nearest = np.empty((n_q, n_s), np.int64)
+    first = np.empty((n_q, n_s), np.float32)
+    second = np.empty((n_q, n_s), np.float32)
+    two = np.float32(2.0)
+    width = 0
+    for s in range(n_s):
+        width = max(width, bounds[s + 1] - bounds[s])
+    d = np.empty(width, np.int32)
+    for i in range(n_q):
+        row = dots[i]
+        qi = q_sq[i]
+        for s in range(n_s):
+            lo = bounds[s]
+            n = bounds[s + 1] - lo
+            # short passes that LLVM vectorises: the distances (exact integers), their
+            # minimum, then the first column at the minimum and the smallest of the others
+            for j in range(n):
+                d[j] = np.int32((qi + t_sq[lo + j]) - two * row[lo + j])
+            m1 = d[0]
+            for j in range(1, n):
+                m1 = min(m1, d[j])
+            j1 = 0
+            while d[j1] != m1:
+                j1 += 1
+            m2 = np.int32(2**31 - 1)
+            for j in range(j1):
+                m2 = min(m2, d[j])
+            for j in range(j1 + 1, n):
+                m2 = min(m2, d[j])
+            nearest[i, s] = j1
+            first[i, s] = np.float32(m1)  # exact: below 2**24
+            second[i, s] = np.float32(m2)
+    return nearest, first, second
