@@ -9,10 +9,13 @@ labels; distinct textures, tested). A scene holds, on the front work table:
   thesis' "multiple same-class object instances");
 * distractors: other textured v2 instances (any category) that are not in the database;
 * background clutter: a few upright 1 L briks and 2 L cartons (not in the database) in a strip
-  at the back of the table.
+  at the back of the table, and posters on the lab's walls (:mod:`ipbench.assets.room`: the
+  room's walls at their documented places, A1/A2 adverts at gallery height).
 
 Levels (:data:`LEVELS`) follow the thesis' three: ``simple`` (5 objects on the table),
-``medium`` (9) and ``complex`` (14), plus background. Poses (upright or lying, yaw, position,
+``medium`` (9) and ``complex`` (14), plus background objects (2, 3, 4) and wall posters
+(2, 4, 6; the posters are drawn from a stream of their own, so they leave the objects' layout
+of a seed as it was). Poses (upright or lying, yaw, position,
 with non-overlapping bounding circles) and the head's start gaze (both PTUs aimed at a point
 drawn on the table) come from the seed: the same seed gives the same scene.
 
@@ -37,6 +40,7 @@ from ipbench.assets.objects import (
     instances,
     resting_poses,
 )
+from ipbench.assets.room import Poster, add_room, layout_posters
 from ipbench.envs.ptu import ptu_spec
 
 __all__ = [
@@ -101,6 +105,7 @@ class SceneLevel:
     n_distractors: int
     n_background: int
     lying_fraction: float
+    n_posters: int = 0
 
     @property
     def n_table(self) -> int:
@@ -109,9 +114,9 @@ class SceneLevel:
 
 
 LEVELS: dict[str, SceneLevel] = {
-    "simple": SceneLevel("simple", 3, 1, 1, 2, 0.0),
-    "medium": SceneLevel("medium", 5, 2, 2, 3, 0.2),
-    "complex": SceneLevel("complex", 7, 3, 4, 4, 0.2),
+    "simple": SceneLevel("simple", 3, 1, 1, 2, 0.0, 2),
+    "medium": SceneLevel("medium", 5, 2, 2, 3, 0.2, 4),
+    "complex": SceneLevel("complex", 7, 3, 4, 4, 0.2, 6),
 }
 """The three levels (thesis ch. 3: simple, medium and complex scenes)."""
 
@@ -142,15 +147,16 @@ class SceneObject:
 
 @dataclass(frozen=True)
 class ExplorationScene:
-    """A seeded scene: its objects and the head's start gaze ``home_gaze`` (4,) rad
+    """A seeded scene: its objects, the head's start gaze ``home_gaze`` (4,) rad
     (left pan, left tilt, right pan, right tilt; on the PTU step grid), aimed at
-    ``home_target`` (3,) world m."""
+    ``home_target`` (3,) world m, and the posters on the walls."""
 
     level: str
     seed: int
     objects: tuple[SceneObject, ...]
     home_gaze: tuple[float, float, float, float]
     home_target: tuple[float, float, float]
+    posters: tuple[Poster, ...] = ()
 
 
 def database_instance(label: str) -> ObjectInstance:
@@ -300,15 +306,18 @@ def sample_scene(level: str, seed: int) -> ExplorationScene:
     (gx0, gx1), (gy0, gy1) = _GAZE_AREA
     target = np.array([rng.uniform(gx0, gx1), rng.uniform(gy0, gy1), height])
     gaze = aim_head(target)
+    posters = layout_posters(np.random.default_rng([int(seed), 2018, 4]), cfg.n_posters)
     return ExplorationScene(
-        level, int(seed), objects, tuple(map(float, gaze)), tuple(map(float, target))
+        level, int(seed), objects, tuple(map(float, gaze)), tuple(map(float, target)), posters
     )
 
 
 def build_model(scene: ExplorationScene) -> mujoco.MjModel:
-    """The work cell with the scene's objects welded to the world (no free joint), keyframe
-    ``home``: arms at zero, the head at the scene's start gaze, every servo holding it."""
+    """The work cell in its room with the scene's objects welded to the world (no free joint)
+    and its posters, keyframe ``home``: arms at zero, the head at the scene's start gaze,
+    every servo holding it."""
     spec = build_workcell_spec()
+    add_room(spec, scene.posters)
     for obj in scene.objects:
         body = add_object(spec, obj.instance, obj.name, pos=obj.position, quat=obj.quat)
         for joint in list(body.joints):  # static: nothing touches them in this task

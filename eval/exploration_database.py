@@ -49,7 +49,7 @@ __all__ = [
     "load_or_build_database",
 ]
 
-CAPTURE_VERSION = 1
+CAPTURE_VERSION = 2  # 2: the head captures in the lab room (walls)
 """Version of the capture protocol (part of the cache key)."""
 
 
