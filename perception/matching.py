@@ -10,8 +10,11 @@ ratio test per set. Integer-valued float descriptors (OpenCV's SIFT stores its b
 take their squared L2 distances from one float32 matrix product per block of train descriptors
 — exact for integers: every partial sum is an integer below 2**24 — and the compiled kernel
 :func:`~ipbench.perception._match_kernels.segment_two_nearest`; the result equals the brute
-force matcher's exactly (a test holds it to ``cv2.BFMatcher``). A :class:`TrainSet` keeps the
-stacked train descriptors, their norms and that check, so that a database pays for them once.
+force matcher's exactly (a test holds it to ``cv2.BFMatcher``). Binary descriptors (AKAZE,
+ORB) take :func:`~ipbench.perception._match_kernels.hamming_two_nearest`, exact as well.
+A :class:`TrainSet` keeps the stacked train descriptors, their norms and that check, so that a
+database pays for them once; KAZE's real-valued descriptors go through ``cv2.batchDistance``
+one set at a time (a float sum in another order would not be bit-identical).
 """
 
 from __future__ import annotations
@@ -21,7 +24,7 @@ from dataclasses import dataclass, field
 import cv2
 import numpy as np
 
-from ipbench.perception._match_kernels import segment_two_nearest
+from ipbench.perception._match_kernels import hamming_two_nearest, segment_two_nearest
 from ipbench.perception.features2d import ActiveVisionError, Features, norm_of
 
 __all__ = ["LOWE_RATIO", "TrainSet", "match", "match_many"]
@@ -85,11 +88,14 @@ class TrainSet:
         Their type (the first set's; all must share it).
     exact_product : bool
         True when the descriptors take the exact matrix-product path (module docstring).
+    binary : bool
+        True when they are bytes compared by Hamming distance (module docstring).
     """
 
     features: tuple[Features, ...]
     feature_type: str = field(init=False)
     exact_product: bool = field(init=False)
+    binary: bool = field(init=False)
     _use: tuple[int, ...] = field(init=False, repr=False)  # sets with >= 2 features
     _stack: np.ndarray = field(init=False, repr=False)  # (M, D) their descriptors, stacked
     _sq: np.ndarray = field(init=False, repr=False)  # (M,) float32 squared norms
@@ -114,7 +120,14 @@ class TrainSet:
         put = object.__setattr__
         put(self, "features", features)
         put(self, "feature_type", types[0] if types else "")
+        binary = bool(use) and stack.dtype == np.uint8
+        if binary:  # 64-bit words, zero-padded
+            width = -(-stack.shape[1] // 8) * 8
+            stack = np.ascontiguousarray(np.pad(stack, ((0, 0), (0, width - stack.shape[1])))).view(
+                np.uint64
+            )
         put(self, "exact_product", exact)
+        put(self, "binary", binary)
         put(self, "_use", use)
         put(self, "_stack", stack)
         put(self, "_sq", sq)
@@ -143,6 +156,8 @@ def match_many(
     use, offset = trains._use, trains._offset
     if len(query) == 0 or not use:
         return out
+    if trains.binary and query.descriptors.dtype == np.uint8:
+        return _match_binary(query, trains, ratio, out)
     if not (trains.exact_product and _integer_valued(query.descriptors)):
         return [match(query, t, ratio) for t in trains.features]
     q = query.descriptors
@@ -163,4 +178,26 @@ def match_many(
             rows = np.flatnonzero(dist0[:, col] < ratio * dist1[:, col])
             out[i] = np.stack([rows, nearest[rows, col]], axis=1).astype(np.int64).reshape(-1, 2)
         k = end
+    return out
+
+
+def _match_binary(
+    query: Features, trains: TrainSet, ratio: float, out: list[np.ndarray]
+) -> list[np.ndarray]:
+    """The Hamming path of :func:`match_many` (``out`` holds the empty results)."""
+    q = query.descriptors
+    width = trains._stack.shape[1] * 8
+    if q.shape[1] > width:
+        raise ActiveVisionError(
+            f"query descriptors have {q.shape[1]} bytes, the train sets {width} at most;"
+            " valid: descriptors of one detector"
+        )
+    words = np.ascontiguousarray(np.pad(q, ((0, 0), (0, width - q.shape[1])))).view(np.uint64)
+    nearest, first, second = hamming_two_nearest(
+        words, trains._stack, trains._offset.astype(np.int64)
+    )
+    dist0, dist1 = first.astype(np.float64), second.astype(np.float64)  # as the matcher's
+    for col, i in enumerate(trains._use):
+        rows = np.flatnonzero(dist0[:, col] < ratio * dist1[:, col])
+        out[i] = np.stack([rows, nearest[rows, col]], axis=1).astype(np.int64).reshape(-1, 2)
     return out

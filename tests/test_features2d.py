@@ -159,6 +159,7 @@ def test_match_and_match_many_equal_the_brute_force_matcher(feature_type):
     many = match_many(query, trains)
     prepared = TrainSet(tuple(trains))
     assert prepared.exact_product == (feature_type == "sift")
+    assert prepared.binary == (feature_type in ("akaze", "orb"))
     for a, b in zip(match_many(query, prepared), many, strict=True):
         np.testing.assert_array_equal(a, b)
     assert len(many) == len(trains) and len(many[0]) >= 30 and len(many[1]) >= 30

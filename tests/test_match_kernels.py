@@ -1,10 +1,11 @@
 """The compiled matcher kernel equals the numpy chain it replaced (``np.argmin`` and
 ``np.partition(d2, 1)`` per train set), ties included."""
 
+import cv2
 import numpy as np
 import pytest
 
-from ipbench.perception._match_kernels import segment_two_nearest
+from ipbench.perception._match_kernels import hamming_two_nearest, segment_two_nearest
 
 
 def _numpy_chain(q: np.ndarray, t: np.ndarray, bounds: np.ndarray):
@@ -42,3 +43,25 @@ def test_the_kernel_equals_argmin_and_partition_bit_for_bit(seed):
     assert got[0][0, 0] == 5 and got[1][0, 0] == got[2][0, 0] == 0.0
     if levels == 3:
         assert np.any(got[1] == got[2])  # the tie case is exercised
+
+
+@pytest.mark.parametrize("n_bytes", [32, 61])  # ORB, AKAZE (padded to 64)
+def test_the_hamming_kernel_equals_opencvs_batch_distance(n_bytes):
+    rng = np.random.default_rng(n_bytes)
+    q = rng.integers(0, 256, (40, n_bytes), dtype=np.uint8)
+    t = rng.integers(0, 256, (200, n_bytes), dtype=np.uint8)
+    t[3] = t[9] = q[0]  # a repeated nearest at distance 0
+    bounds = np.array([0, 12, 14, 90, 200], np.int64)
+    width = -(-n_bytes // 8) * 8
+
+    def words(a):
+        return np.ascontiguousarray(np.pad(a, ((0, 0), (0, width - n_bytes)))).view(np.uint64)
+
+    nearest, first, second = hamming_two_nearest(words(q), words(t), bounds)
+    assert nearest[0, 0] == 3 and first[0, 0] == second[0, 0] == 0
+    for s, (lo, hi) in enumerate(zip(bounds[:-1], bounds[1:], strict=True)):
+        dist, nidx = cv2.batchDistance(q, t[lo:hi], cv2.CV_32S, normType=cv2.NORM_HAMMING, K=2)
+        np.testing.assert_array_equal(first[:, s], dist[:, 0])
+        np.testing.assert_array_equal(second[:, s], dist[:, 1])
+        unique = dist[:, 0] < dist[:, 1]  # where the nearest is unique, the same index
+        np.testing.assert_array_equal(nearest[unique, s], nidx[unique, 0])
