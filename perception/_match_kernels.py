@@ -29,6 +29,25 @@ _jit = numba.njit(cache=True, nogil=True, error_model="numpy")
 
 
 @_jit
+def _two_smallest(d: np.ndarray, n: int) -> tuple[int, np.int32, np.int32]:
+    """The first index of the minimum of ``d[:n]`` (int32, n >= 2), the minimum and the
+    smallest of the others: short passes that LLVM vectorises (integer minima need no
+    fast-math)."""
+    m1 = d[0]
+    for j in range(1, n):
+        m1 = min(m1, d[j])
+    j1 = 0
+    while d[j1] != m1:
+        j1 += 1
+    m2 = np.int32(2**31 - 1)
+    for j in range(j1):
+        m2 = min(m2, d[j])
+    for j in range(j1 + 1, n):
+        m2 = min(m2, d[j])
+    return j1, m1, m2
+
+
+@_jit
 def segment_two_nearest(
     dots: np.ndarray, q_sq: np.ndarray, t_sq: np.ndarray, bounds: np.ndarray
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -56,21 +75,10 @@ def segment_two_nearest(
         for s in range(n_s):
             lo = bounds[s]
             n = bounds[s + 1] - lo
-            # short passes that LLVM vectorises: the distances (exact integers), their
-            # minimum, then the first column at the minimum and the smallest of the others
+            # the distances (exact integers), then the two smallest
             for j in range(n):
                 d[j] = np.int32((qi + t_sq[lo + j]) - two * row[lo + j])
-            m1 = d[0]
-            for j in range(1, n):
-                m1 = min(m1, d[j])
-            j1 = 0
-            while d[j1] != m1:
-                j1 += 1
-            m2 = np.int32(2**31 - 1)
-            for j in range(j1):
-                m2 = min(m2, d[j])
-            for j in range(j1 + 1, n):
-                m2 = min(m2, d[j])
+            j1, m1, m2 = _two_smallest(d, n)
             nearest[i, s] = j1
             first[i, s] = np.float32(m1)  # exact: below 2**24
             second[i, s] = np.float32(m2)
@@ -121,17 +129,7 @@ def hamming_two_nearest(
                 for k in range(n_w):
                     bits += _popcount(query[i, k] ^ train[lo + j, k])
                 d[j] = np.int32(bits)
-            m1 = d[0]
-            for j in range(1, n):
-                m1 = min(m1, d[j])
-            j1 = 0
-            while d[j1] != m1:
-                j1 += 1
-            m2 = np.int32(2**31 - 1)
-            for j in range(j1):
-                m2 = min(m2, d[j])
-            for j in range(j1 + 1, n):
-                m2 = min(m2, d[j])
+            j1, m1, m2 = _two_smallest(d, n)
             nearest[i, s] = j1
             first[i, s] = m1
             second[i, s] = m2
