@@ -5,6 +5,7 @@ ipbench eval perception [--env ID] [--out DIR] [--cache DIR]
 ipbench eval sorting [--scenes ...] [--policies ...] [--seeds A:B] [--workers N]
                      [--backend process|ray] [--video] [--out DIR] [--cache DIR]
 ipbench eval exploration [--scenes ...] [--policies ...] [--features ...] [--seeds A:B] ...
+ipbench calibrate --out FILE [--cameras head,wrist] [--poses N] [--seed S] [--overwrite]
 ipbench figures [--env ID] [--out DIR]
 ipbench bench sim [--env ID] [--scene S] [--json [FILE]]
 ipbench bench perception|eval|exploration [--json [FILE]]
@@ -19,6 +20,7 @@ import sys
 from pathlib import Path
 
 from ipbench.eval.check import add_check_parser, main_check
+from ipbench.eval.cli_calibration import add_calibrate, main_calibrate
 from ipbench.eval.cli_exploration import (
     add_bench_exploration,
     add_eval_exploration,
@@ -120,6 +122,8 @@ def build_parser() -> argparse.ArgumentParser:
     )
     demo.add_argument("--seed", type=int, default=0, help="episode seed")
     demo.add_argument("--no-video", action="store_true", help="skip the MP4s")
+
+    add_calibrate(sub)
 
     evaluate = sub.add_parser("eval", help="benchmark evaluations that write reports")
     eval_sub = evaluate.add_subparsers(dest="target", required=True, metavar="TARGET")
@@ -333,6 +337,8 @@ def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     if args.command == "check":
         return main_check(args)
+    if args.command == "calibrate":
+        return main_calibrate(args)
     if args.command == "demo":
         from ipbench.eval.demo import run_demo
 
