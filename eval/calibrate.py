@@ -22,8 +22,13 @@ and the robot samples views automatically, as the thesis did with its arm:
   ``X`` is camera-to-flange (``right_flange``), constant.
 
 Arms and PTUs are set kinematically (``mj_forward``; no physics). The robot's own poses are
-the forward kinematics of the model from its joint readings (today's nominal model equals the
-true one). :func:`calibrate_capture` then calibrates each camera's intrinsics
+the forward kinematics of the model from its joint readings. With
+:attr:`CalibrationCaptureConfig.robot_seed` set, the simulated cell is a *true* one that
+differs from the nominal model by :func:`~ipbench.envs.model_errors.sample_model_errors`
+(camera mounts, PTU bases and zeros, lens distortion): images are rendered from it and
+distorted by its lenses, and the truth is read from it. The arm chains carry no error, so the
+gripper and flange poses the robot computes from its encoders are the true ones.
+:func:`calibrate_capture` then calibrates each camera's intrinsics
 (``cv2.calibrateCamera``), solves each view's board pose (``cv2.solvePnP`` with those
 intrinsics), runs every method of ``HAND_EYE_METHODS`` and keeps, per camera, the one with the
 smallest ``AX = XB`` residual (score: translation RMS in mm plus the rotation RMS as the
@@ -56,6 +61,8 @@ from ipbench.assets.compose import (
     head_gaze,
 )
 from ipbench.envs.ik import ArmIK, look_at_rotation
+from ipbench.envs.lens_distortion import distort_image
+from ipbench.envs.model_errors import ModelErrors, apply_model_errors, sample_model_errors
 from ipbench.envs.ptu import ptu_spec
 from ipbench.envs.sensors import SensorRenderer, camera_pose, intrinsics
 from ipbench.envs.sorting import WRIST_SIZE
@@ -95,6 +102,7 @@ __all__ = [
     "calibrate_cell",
     "calibration_truth",
     "capture_views",
+    "model_errors",
 ]
 
 CAMERA_GROUPS = ("head", "wrist")
@@ -151,6 +159,7 @@ class CalibrationCaptureConfig:
     wrist_board_centre : (3,) world centre of the board held for the wrist camera, m.
     wrist_tilt_deg : largest angle of a wrist viewpoint from the board normal, deg.
     wrist_distance_m : (near, far) distance of the wrist camera from the board, m.
+    robot_seed : seed of the cell's model errors (``None``: the true cell is the nominal one).
     """
 
     cameras: tuple[str, ...] = CAMERA_GROUPS
@@ -167,6 +176,7 @@ class CalibrationCaptureConfig:
     wrist_board_centre: tuple[float, float, float] = (0.65, -0.15, 1.05)
     wrist_tilt_deg: float = 35.0
     wrist_distance_m: tuple[float, float] = (0.40, 0.60)
+    robot_seed: int | None = None
 
     def __post_init__(self) -> None:
         cams = self.cameras
@@ -185,6 +195,11 @@ class CalibrationCaptureConfig:
             value = getattr(self, name)
             if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < least:
                 raise CalibrationRoutineError(f"{name} must be an int >= {least}, got {value!r}")
+        robot = self.robot_seed
+        if robot is not None and (
+            isinstance(robot, bool) or not isinstance(robot, (int, np.integer)) or robot < 0
+        ):
+            raise CalibrationRoutineError(f"robot_seed must be None or an int >= 0, got {robot!r}")
         object.__setattr__(self, "head_size", _size(self.head_size, "head_size"))
         object.__setattr__(self, "wrist_size", _size(self.wrist_size, "wrist_size"))
         near, far = self.wrist_distance_m
@@ -269,15 +284,35 @@ class CalibrationTruth:
     left_to_right: np.ndarray | None
 
 
+def model_errors(config: CalibrationCaptureConfig) -> ModelErrors:
+    """The cell's true model errors for ``config`` (none without a ``robot_seed``)."""
+    if config.robot_seed is None:
+        return ModelErrors.none()
+    return sample_model_errors(int(config.robot_seed))
+
+
 def build_calibration_model(
-    board: Checkerboard, px_per_square: int = 32
+    board: Checkerboard, px_per_square: int = 32, errors: ModelErrors | None = None
 ) -> tuple[mujoco.MjModel, TargetPlate]:
-    """The work cell with ``board`` printed on a plate held by the left gripper."""
+    """The work cell (true: with ``errors`` applied) with ``board`` printed on a plate held by
+    the left gripper."""
     texture = board.render_texture(px_per_square)
     origin = (board.texture_corners_px(px_per_square)[0] + 0.5) * board.size_m[0] / texture.shape[1]
     spec = build_workcell_spec()
+    if errors is not None:
+        apply_model_errors(spec, errors)
     plate = add_target_plate(spec, texture, board.size_m, GRIPPER_SITE, origin_m=tuple(origin))
     return spec.compile(), plate
+
+
+def _render(renderer, model, data, name: str, size: tuple[int, int], errors: ModelErrors):
+    """A camera's image as the true lens gives it: the pinhole render, distorted."""
+    camera = CAMERAS[name]
+    image = renderer.render_rgb(data, camera, *size)
+    lens = errors.distortion[camera]
+    if not any(lens.coefficients):
+        return image
+    return distort_image(image, intrinsics(model, camera, *size).K, lens)
 
 
 def _site_pose(data: mujoco.MjData, name: str) -> np.ndarray:
@@ -347,7 +382,7 @@ def _hold(ik: ArmIK, q0: np.ndarray, plate: TargetPlate, centre, normal, up):
     return result.q if result.converged else None
 
 
-def _capture_head(model, data, renderer, plate, board, config, rng):
+def _capture_head(model, data, renderer, plate, board, config, rng, errors):
     ik = _gripper_ik(model)
     centre = np.asarray(config.head_centre, float)
     gaze = _aim_head(model, data, centre)
@@ -371,7 +406,7 @@ def _capture_head(model, data, renderer, plate, board, config, rng):
             continue
         data.qpos[:] = q
         mujoco.mj_forward(model, data)
-        found = [find_corners(renderer.render_rgb(data, CAMERAS[c], w, h), board)
+        found = [find_corners(_render(renderer, model, data, c, (w, h), errors), board)
                  for c in ("head_left", "head_right")]  # fmt: skip
         if found[0] is None or found[1] is None:
             continue
@@ -384,7 +419,7 @@ def _capture_head(model, data, renderer, plate, board, config, rng):
     return views, attempts
 
 
-def _capture_wrist(model, data, renderer, plate, board, config, rng):
+def _capture_wrist(model, data, renderer, plate, board, config, rng, errors):
     centre = np.asarray(config.wrist_board_centre, float)
     normal = np.array([0.0, 0.0, 1.0])
     # held from the left arm's side: the texture's top (plate +z from the TCP) towards -y
@@ -412,7 +447,7 @@ def _capture_wrist(model, data, renderer, plate, board, config, rng):
             continue
         data.qpos[:] = result.q
         mujoco.mj_forward(model, data)
-        found = find_corners(renderer.render_rgb(data, CAMERAS["wrist"], w, h), board)
+        found = find_corners(_render(renderer, model, data, "wrist", (w, h), errors), board)
         if found is None:
             continue
         flanges.append(invert(_base_pose(data)) @ _site_pose(data, FLANGE_SITE))
@@ -430,7 +465,8 @@ def capture_views(
         )
     start = time.perf_counter()
     board = Checkerboard()
-    model, plate = build_calibration_model(board, config.px_per_square)
+    errors = model_errors(config)
+    model, plate = build_calibration_model(board, config.px_per_square, errors)
     rng = np.random.default_rng([config.seed, 14])
     renderer = SensorRenderer(model)
     head = wrist = None
@@ -440,7 +476,7 @@ def capture_views(
             data = mujoco.MjData(model)
             mujoco.mj_forward(model, data)
             run = _capture_head if group == "head" else _capture_wrist
-            views, attempts[group] = run(model, data, renderer, plate, board, config, rng)
+            views, attempts[group] = run(model, data, renderer, plate, board, config, rng, errors)
             n = len(views.gripper_to_base if group == "head" else views.flange_to_base)
             if n < MIN_POSES:
                 raise CalibrationRoutineError(
@@ -526,7 +562,8 @@ def calibrate_cell(
 def calibration_truth(capture: CalibrationCapture) -> CalibrationTruth:
     """The simulator's true intrinsics, hand-eye transforms and stereo transform for the
     cameras of ``capture`` (evaluation only: the routine never reads these)."""
-    model, _ = build_calibration_model(capture.board, capture.config.px_per_square)
+    errors = model_errors(capture.config)
+    model, _ = build_calibration_model(capture.board, capture.config.px_per_square, errors)
     data = mujoco.MjData(model)
     K, X, stereo = {}, {}, None
     if capture.head is not None:

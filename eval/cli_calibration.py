@@ -1,6 +1,7 @@
 """The calibration commands of ``ipbench`` (thesis ch. 4).
 
-ipbench calibrate --out FILE [--cameras head,wrist] [--poses N] [--seed S] [--overwrite]
+ipbench calibrate --out FILE [--cameras head,wrist] [--poses N] [--seed S] [--robot-seed R]
+                  [--overwrite]
 """
 
 from __future__ import annotations
@@ -27,6 +28,13 @@ def add_calibrate(sub) -> argparse.ArgumentParser:
     p.add_argument("--cameras", default="head,wrist", help="comma-separated: head, wrist")
     p.add_argument("--poses", type=int, default=15, help="board views per camera group (>= 3)")
     p.add_argument("--seed", type=int, default=0, help="seed of the pose sampling")
+    p.add_argument(
+        "--robot-seed",
+        type=int,
+        default=None,
+        help="seed of the simulated cell's model errors (camera mounts, PTU bases and zeros, "
+        "lenses; ipbench.envs.model_errors); omitted: the cell is exactly the nominal model",
+    )
     p.add_argument("--overwrite", action="store_true", help="replace an existing FILE")
     return p
 
@@ -47,7 +55,10 @@ def main_calibrate(args) -> int:
         )
     try:
         config = CalibrationCaptureConfig(
-            cameras=args.cameras, poses_per_camera=args.poses, seed=args.seed
+            cameras=args.cameras,
+            poses_per_camera=args.poses,
+            seed=args.seed,
+            robot_seed=args.robot_seed,
         )
         result = calibrate_capture(capture_views(config))
         path = result.file.save(args.out, overwrite=args.overwrite)

@@ -141,6 +141,7 @@ def test_calibration_file_round_trips(run, tmp_path):
         ({"poses_per_camera": 2}, "poses_per_camera must be an int >= 3"),
         ({"head_size": (2000, 680)}, "head_size must be whole"),
         ({"seed": -1}, "seed must be an int >= 0"),
+        ({"robot_seed": -2}, "robot_seed must be None or an int >= 0"),
         ({"wrist_distance_m": (0.7, 0.4)}, "wrist_distance_m must be"),
     ],
 )
@@ -153,3 +154,23 @@ def test_cameras_may_be_given_as_a_comma_list_and_a_bad_config_object_is_refused
     assert CalibrationCaptureConfig(cameras="wrist,head").cameras == ("head", "wrist")
     with pytest.raises(CalibrationRoutineError, match="CalibrationCaptureConfig"):
         capture_views({"cameras": "head"})
+
+
+def test_a_cell_with_model_errors_is_calibrated_far_closer_than_its_nominal_model():
+    """With the true cell off its nominal model (envs.model_errors: camera mounts, PTU bases,
+    lenses), the calibrated hand-eye X is much nearer the truth than the nominal model's."""
+    config = CalibrationCaptureConfig(cameras=("wrist",), poses_per_camera=8, seed=3, robot_seed=1)
+    capture = capture_views(config)
+    result = calibrate_capture(capture)
+    truth = calibration_truth(capture)
+    nominal = calibration_truth(capture_views(CalibrationCaptureConfig(
+        cameras=("wrist",), poses_per_camera=3, seed=3)))  # fmt: skip
+    X = result.file.hand_eye["wrist"].X
+    calibrated_deg = float(rotation_angle_deg(X, truth.X["wrist"]))
+    nominal_deg = float(rotation_angle_deg(nominal.X["wrist"], truth.X["wrist"]))
+    calibrated_mm = float(translation_error_mm(X, truth.X["wrist"]))
+    nominal_mm = float(translation_error_mm(nominal.X["wrist"], truth.X["wrist"]))
+    assert nominal_deg > 0.1 and nominal_mm > 1.0  # the errors are there
+    assert calibrated_deg < nominal_deg / 3 and calibrated_mm < nominal_mm / 2
+    # the true lens is distorted (the Xtion's own coefficients) and the routine recovers k1
+    assert abs(result.file.camera("wrist").dist[0]) > 0.005
