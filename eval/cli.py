@@ -5,6 +5,7 @@ ipbench eval perception [--env ID] [--out DIR] [--cache DIR]
 ipbench eval sorting [--scenes ...] [--policies ...] [--seeds A:B] [--workers N]
                      [--backend process|ray] [--video] [--out DIR] [--cache DIR]
 ipbench eval exploration [--scenes ...] [--policies ...] [--features ...] [--seeds A:B] ...
+ipbench eval calibration [--out DIR] [--seed S]
 ipbench calibrate --out FILE [--cameras head,wrist] [--poses N] [--seed S] [--overwrite]
 ipbench figures [--env ID] [--out DIR]
 ipbench bench sim [--env ID] [--scene S] [--json [FILE]]
@@ -20,7 +21,12 @@ import sys
 from pathlib import Path
 
 from ipbench.eval.check import add_check_parser, main_check
-from ipbench.eval.cli_calibration import add_calibrate, main_calibrate
+from ipbench.eval.cli_calibration import (
+    add_calibrate,
+    add_eval_calibration,
+    main_calibrate,
+    main_eval_calibration,
+)
 from ipbench.eval.cli_exploration import (
     add_bench_exploration,
     add_eval_exploration,
@@ -203,6 +209,7 @@ def build_parser() -> argparse.ArgumentParser:
     )
 
     add_eval_exploration(eval_sub)
+    add_eval_calibration(eval_sub)
 
     figures = sub.add_parser(
         "figures",
@@ -393,6 +400,8 @@ def main(argv: list[str] | None = None) -> int:
             print(f"{scene}: {row}")
         print(f"report written to {(args.out / 'sorting.md').resolve()}")
         return 0
+    if args.command == "eval" and args.target == "calibration":
+        return main_eval_calibration(args, _writable)
     if args.command in ("eval", "bench") and args.target == "exploration":
         return main_exploration(args, _seeds, _writable, _print_figures)
     if args.command == "figures":

@@ -1,0 +1,142 @@
+"""``ipbench eval calibration``: how well the robot calibrates its cameras (issue 14, ch. 4).
+
+Two parts, both against the simulator's truth:
+
+1. **Hand-eye study** (:mod:`.calibration_study`, pose level): every method's X error against
+   the truth for 3/5/10/20 poses at OpenCV's regression-test noise and a tenth of it, and the
+   rotation-diversity sweep that breaks Tsai; ``metrics.json``'s ``hand_eye`` block is the
+   issue's view (10 poses, default noise).
+2. **Self-calibration in the simulated cell** (:mod:`.calibrate`): a cell whose true model
+   differs from the nominal one (``robot_seed``) calibrates itself from rendered images; per
+   camera, the error of the nominal model's X and of the calibrated X against the truth, and
+   the intrinsics' error.
+
+The reconstruction tables (thesis Tables 4.2-4.5) are not measured yet (issue 14).
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+
+from ipbench.eval.calibrate import (
+    CalibrationCaptureConfig,
+    calibrate_capture,
+    calibration_truth,
+    capture_views,
+)
+from ipbench.eval.calibration_study import HandEyeStudyConfig, metrics_view, run_hand_eye_study
+from ipbench.perception.calibration.poses import rotation_angle_deg, translation_error_mm
+
+__all__ = ["run_calibration_eval", "self_calibration"]
+
+
+def _error(a: np.ndarray, b: np.ndarray) -> dict[str, float]:
+    return {
+        "rotation_deg": float(rotation_angle_deg(a, b)),
+        "translation_mm": float(translation_error_mm(a, b)),
+    }
+
+
+def self_calibration(seed: int = 0, robot_seed: int = 1, poses: int = 15) -> dict:
+    """The cell of ``robot_seed`` calibrates itself (pose sampling ``seed``): per camera, the
+    nominal and calibrated X errors against the truth, the method kept, the intrinsics'
+    error (|K - K_true| / fx for fx, fy, cx, cy) and the stereo transform's error."""
+    config = CalibrationCaptureConfig(poses_per_camera=poses, seed=seed, robot_seed=robot_seed)
+    capture = capture_views(config)
+    result = calibrate_capture(capture)
+    truth = calibration_truth(capture)
+    nominal_capture = capture_views(
+        CalibrationCaptureConfig(poses_per_camera=3, seed=seed, robot_seed=None)
+    )  # the same gaze and cell without errors: what the robot's model believes
+    nominal = calibration_truth(nominal_capture)
+    cameras = {}
+    for name, entry in result.file.hand_eye.items():
+        K, K_true = result.file.camera(name).K, truth.K[name]
+        cameras[name] = {
+            "setup": entry.setup,
+            "method": entry.method,
+            "nominal": _error(nominal.X[name], truth.X[name]),
+            "calibrated": _error(entry.X, truth.X[name]),
+            "intrinsics_error_fraction": (
+                np.abs(K - K_true)[[0, 1, 0, 1], [0, 1, 2, 2]] / K_true[0, 0]
+            ).tolist(),
+            "reprojection_rms_px": result.file.camera(name).rms_px,
+        }
+    out = {"seed": seed, "robot_seed": robot_seed, "poses": poses, "cameras": cameras}
+    if result.file.stereo is not None and truth.left_to_right is not None:
+        out["stereo"] = {
+            "nominal": _error(nominal.left_to_right, truth.left_to_right),
+            "calibrated": _error(result.file.stereo.left_to_right, truth.left_to_right),
+        }
+    out["seconds"] = round(capture.seconds, 1)
+    return out
+
+
+def _cell(c: dict) -> str:
+    rot, trans = c["rotation_deg"]["median"], c["translation_mm"]["median"]
+    if rot is None or trans is None:
+        return f"refused ({c['failures']} of {c['trials']})"
+    return f"{rot:.3f} / {trans:.2f}"
+
+
+def _markdown(metrics: dict) -> str:
+    lines = ["# Calibration (thesis ch. 4)", "", "## Hand-eye against the truth (pose level)", ""]
+    study = metrics["hand_eye_study"]
+    some = next(iter(study["cameras"].values()))["poses"]
+    columns = [(n, x) for n in some for x in some[n]]  # every pose count and noise scale
+    lines += [
+        "Median X error over the trials, rotation ° / translation mm, at OpenCV's "
+        "regression-test noise (x1) and a tenth of it (x0.1).",
+        "",
+        "| camera | method | " + " | ".join(f"{n} poses x{x}" for n, x in columns) + " |",
+        "|---|---|" + "---|" * len(columns),
+    ]
+    for cam, by in study["cameras"].items():
+        first = by["poses"][columns[0][0]][columns[0][1]]
+        for method in first:
+            text = [_cell(by["poses"][n][x][method]) for n, x in columns]
+            lines.append(f"| {cam} | {method} | " + " | ".join(text) + " |")
+    cal = metrics["self_calibration"]
+    lines += [
+        "",
+        f"## Self-calibration in the simulated cell (robot seed {cal['robot_seed']}, "
+        f"{cal['poses']} poses per camera)",
+        "",
+        "| camera | method kept | nominal model's X error | calibrated X error |",
+        "|---|---|---|---|",
+    ]
+    for cam, c in cal["cameras"].items():
+        n, k = c["nominal"], c["calibrated"]
+        lines.append(
+            f"| {cam} | {c['method']} | {n['rotation_deg']:.2f}° / {n['translation_mm']:.1f} mm"
+            f" | {k['rotation_deg']:.3f}° / {k['translation_mm']:.2f} mm |"
+        )
+    if "stereo" in cal:
+        n, k = cal["stereo"]["nominal"], cal["stereo"]["calibrated"]
+        lines.append(
+            f"| stereo (left to right) | eq. 4.7 + BA | {n['rotation_deg']:.2f}° / "
+            f"{n['translation_mm']:.1f} mm | {k['rotation_deg']:.3f}° / "
+            f"{k['translation_mm']:.2f} mm |"
+        )
+    lines += ["", "Reconstruction accuracy (thesis Tables 4.2-4.5) is not measured yet.", ""]
+    return "\n".join(lines)
+
+
+def run_calibration_eval(
+    out: Path, seed: int = 0, study: HandEyeStudyConfig | None = None, poses: int = 15
+) -> dict:
+    """Run both parts (the study of ``study``, default: the full one of ``seed``; the cell's
+    self-calibration with ``poses`` per camera), write ``out/metrics.json`` and
+    ``out/calibration.md``; return the metrics."""
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    config = study or HandEyeStudyConfig(seed=seed)
+    result = run_hand_eye_study(config)
+    metrics = {**metrics_view(result), "hand_eye_study": result}
+    metrics["self_calibration"] = self_calibration(seed=seed, poses=poses)
+    (out / "metrics.json").write_text(json.dumps(metrics, indent=1) + "\n")
+    (out / "calibration.md").write_text(_markdown(metrics))
+    return metrics
