@@ -38,6 +38,8 @@ from dataclasses import dataclass
 import mujoco
 import numpy as np
 
+from ipbench.assets.quads import add_textured_quad
+
 __all__ = ["TargetPlate", "TargetPlateError", "add_target_plate"]
 
 _VISUAL_GROUP = 2  # rendered by the sensors (groups 0-2), never a collision geom
@@ -159,24 +161,10 @@ def add_target_plate(
 
     parent = spec.body(site.parent.name) if site.parent.name else spec.worldbody
     body = parent.add_body(name=name, pos=parent_from_plate[:3, 3].tolist(), quat=quat.tolist())
-    tex = spec.add_texture(
-        name=f"{name}_tex", type=mujoco.mjtTexture.mjTEXTURE_2D,
-        width=image.shape[1], height=image.shape[0], nchannel=3,
-    )  # fmt: skip
-    tex.data = image.tobytes()
-    mat = spec.add_material(name=f"{name}_mat", rgba=[1.0, 1.0, 1.0, 1.0], specular=0.0)
-    mat.textures[mujoco.mjtTextureRole.mjTEXROLE_RGB] = f"{name}_tex"
-    # face quad at plate z = 0: top-left, top-right, bottom-right, bottom-left; counter-
-    # clockwise as seen from the front (looking along +z with y down), texture row 0 on top
+    # face quad at plate z = 0, seen from the front (-z: the face looks along the plate's -z)
     corners = [(0.0, 0.0, 0.0), (w, 0.0, 0.0), (w, h, 0.0), (0.0, h, 0.0)]
-    spec.add_mesh(
-        name=f"{name}_mesh", uservert=np.ravel(corners).tolist(), userface=[0, 3, 2, 0, 2, 1],
-        usertexcoord=[0.0, 0.0, 1.0, 0.0, 1.0, 1.0, 0.0, 1.0],
-    ).inertia = mujoco.mjtMeshInertia.mjMESH_INERTIA_SHELL  # fmt: skip
-    body.add_geom(
-        name=f"{name}_face", type=mujoco.mjtGeom.mjGEOM_MESH, meshname=f"{name}_mesh",
-        material=f"{name}_mat", contype=0, conaffinity=0, group=_VISUAL_GROUP, mass=0.0,
-    )  # fmt: skip
+    add_textured_quad(spec, body, name, image, corners, (0.0, 0.0, -1.0), _VISUAL_GROUP,
+                      geom_name=f"{name}_face")  # fmt: skip
     body.add_geom(
         name=f"{name}_plate", type=mujoco.mjtGeom.mjGEOM_BOX, size=[w / 2, h / 2, t / 2],
         pos=[w / 2, h / 2, t / 2 + _FACE_GAP], rgba=[0.55, 0.57, 0.6, 1.0],
