@@ -13,7 +13,7 @@ SMALL = HandEyeStudyConfig(pose_counts=(3, 10), trials=8, diversity_spreads_deg=
 
 
 def test_metrics_have_the_issues_keys_and_calibration_beats_the_nominal_model(tmp_path):
-    metrics = run_calibration_eval(tmp_path, seed=2, study=SMALL, poses=6)
+    metrics = run_calibration_eval(tmp_path, seed=2, study=SMALL, poses=6, reconstructions=2)
     on_disk = json.loads((tmp_path / "metrics.json").read_text())
     assert on_disk["hand_eye"] == metrics["hand_eye"]
     for camera in ("wrist", "head_left"):
@@ -25,8 +25,12 @@ def test_metrics_have_the_issues_keys_and_calibration_beats_the_nominal_model(tm
     for c in cal["cameras"].values():  # the seeded cell is off its nominal model; calibration
         assert c["calibrated"]["translation_mm"] < c["nominal"]["translation_mm"]
         assert c["calibrated"]["rotation_deg"] < c["nominal"]["rotation_deg"]
+    rec = on_disk["reconstruction"]
+    for key in ("head_dynamic_rmse_mm", "head_encoders_rmse_mm", "wrist_rmse_mm"):
+        assert rec[key] is not None and rec[key] > 0
     report = (tmp_path / "calibration.md").read_text()
     assert "| wrist | tsai |" in report and "nominal model's X error" in report
+    assert "| head, encoders |" in report and "wrist Xtion depth" in report
 
 
 def test_eval_calibration_rejects_a_negative_seed(tmp_path):
