@@ -14,7 +14,10 @@ database objects they recognise. The public contract:
   ``settle_speed``) or ``max_saccade_time`` has passed. ``saccade_budget`` saccades truncate.
 * Observation: ``head_left``/``head_right`` (HxWx3 uint8), ``head_*_K`` (3x3), ``head_*_pose``
   (4x4 world-from-camera, OpenCV axes, by forward kinematics of the encoder readings: what
-  the robot knows), ``head_qpos`` (4,) encoder readings, rad.
+  the robot knows), ``head_qpos`` (4,) encoder readings, rad. ``extrinsics="nominal"`` or
+  ``"calibrated"`` (:mod:`ipbench.envs.extrinsics`): the world is the true cell of
+  ``robot_seed`` (images and masks distorted by its lenses), ``head_*_K``/``head_*_pose`` are
+  the robot's beliefs and ``head_*_dist`` (5,) the distortion it believes.
 * ``info`` (ground truth, evaluation and oracles only): ``objects`` {name: class (a
   database class or None), instance, role, position (3,), radius}, ``head_left_mask`` /
   ``head_right_mask`` (HxW int32 index into ``objects``' order, -1 none), ``score``,
@@ -32,7 +35,9 @@ import mujoco
 import numpy as np
 from gymnasium import spaces
 
-from ipbench.assets.compose import HEAD_SIDES
+from ipbench.assets.compose import HEAD_SIDES, build_workcell_spec
+from ipbench.assets.objects import add_object
+from ipbench.assets.room import add_room
 from ipbench.envs.exploration_scene import (
     DATABASE_CLASSES,
     GAZE_JOINTS,
@@ -41,6 +46,9 @@ from ipbench.envs.exploration_scene import (
     sample_scene,
 )
 from ipbench.envs.exploration_scoring import GroundTruthObject, Scorer
+from ipbench.envs.extrinsics import DIST_SIZE, CameraKnowledge, check_extrinsics, distort_labels
+from ipbench.envs.lens_distortion import distort_image
+from ipbench.envs.model_errors import ModelErrors, apply_model_errors, sample_model_errors
 from ipbench.envs.ptu import PtuError, PtuSpec, head_spec_arrays, ptu_spec, setpoint_step
 from ipbench.envs.sensors import SensorRenderer, camera_pose, intrinsics
 from ipbench.envs.sorting import InvalidActionError, ResetNeededError
@@ -52,6 +60,7 @@ __all__ = [
     "ExplorationEnv",
     "InvalidActionError",
     "ResetNeededError",
+    "true_model",
 ]
 
 REPORT_KINDS: tuple[str, ...] = ("none", "object", "done")
@@ -75,6 +84,10 @@ class ExplorationConfig:
     settle_speed : ... and moves slower than this (rad/s).
     max_saccade_time : longest simulated time of one saccade (s); the slowest full swing,
         tilt's 77.7 deg at 60 deg/s, takes 1.3 s.
+    extrinsics : ``"true"`` (default), ``"nominal"`` or ``"calibrated"``
+        (:mod:`ipbench.envs.extrinsics`; the module docstring).
+    robot_seed : seed of the true cell's model errors (``nominal``/``calibrated`` only).
+    calibration : calibration file path for ``extrinsics="calibrated"``, else None.
     """
 
     scene: str = "simple"
@@ -83,8 +96,12 @@ class ExplorationConfig:
     settle_tolerance: float = 0.5
     settle_speed: float = 0.01
     max_saccade_time: float = 3.0
+    extrinsics: str = "true"
+    robot_seed: int = 0
+    calibration: str | None = None
 
     def __post_init__(self) -> None:
+        check_extrinsics(self.extrinsics, self.calibration, self.robot_seed)
         if self.scene not in LEVELS:
             raise ValueError(f"unknown scene {self.scene!r}; valid: {', '.join(LEVELS)}")
         size = tuple(self.head_size)
@@ -126,6 +143,16 @@ class ExplorationEnv(gym.Env):
             obs[f"head_{s}_K"] = spaces.Box(-np.inf, np.inf, (3, 3), np.float64)
             obs[f"head_{s}_pose"] = spaces.Box(-np.inf, np.inf, (4, 4), np.float64)
         obs["head_qpos"] = spaces.Box(self._lower, self._upper, dtype=np.float64)
+        self._knowledge: CameraKnowledge | None = None  # None: extrinsics="true"
+        if self.config.extrinsics != "true":
+            self._knowledge = CameraKnowledge.build(
+                self.config.extrinsics,
+                tuple(f"head_{s}" for s in HEAD_SIDES),
+                self.config.calibration,
+            )
+            self._errors = sample_model_errors(self.config.robot_seed)
+            for s in HEAD_SIDES:
+                obs[f"head_{s}_dist"] = spaces.Box(-np.inf, np.inf, (DIST_SIZE,), np.float64)
         self.observation_space = spaces.Dict(obs)
         self.model = self.data = self.scene = None
         self._renderer: SensorRenderer | None = None
@@ -137,13 +164,20 @@ class ExplorationEnv(gym.Env):
         if options:
             raise ValueError(f"unknown reset option(s) {sorted(options)}; valid: none")
         self.scene = sample_scene(self.config.scene, int(self.np_random.integers(2**31)))
-        self.model = m = build_model(self.scene)
+        if self._knowledge is None:
+            self.model = m = build_model(self.scene)
+        else:  # the true cell
+            self.model = m = true_model(self.scene, self._errors)
         if tuple(PtuSpec.from_model(m, f"head_{s}_") for s in HEAD_SIDES) != self.ptus:
             raise RuntimeError("the work cell's PTUs differ from assets/head/ptu_d46.xml")
         self.data = mujoco.MjData(m)
         mujoco.mj_resetDataKeyframe(m, self.data, m.key("home").id)
         mujoco.mj_forward(m, self.data)
         self._fk = mujoco.MjData(m)
+        if self._knowledge is not None:  # the robot's joints, by name, for the nominal FK
+            self._known_qadr = np.array(
+                [m.jnt_qposadr[m.joint(j).id] for j in self._knowledge.joint_names]
+            )
         self._qadr = np.array([m.jnt_qposadr[m.joint(j).id] for j in GAZE_JOINTS])
         self._dadr = np.array([m.jnt_dofadr[m.joint(j).id] for j in GAZE_JOINTS])
         self._act = np.array(  # the position actuator of each gaze joint
@@ -287,6 +321,19 @@ class ExplorationEnv(gym.Env):
             obs[f"head_{s}_K"] = intrinsics(m, cam, w, h).K
             obs[f"head_{s}_pose"] = camera_pose(m, fk, cam)
             self._masks[s] = self._mask_lut[r.render_segmentation(d, cam, w, h)]
+            if self._knowledge is not None:  # the true lens
+                lens, K = self._errors.distortion[cam], obs[f"head_{s}_K"]  # noqa: N806
+                obs[f"head_{s}"] = distort_image(obs[f"head_{s}"], K, lens)
+                self._masks[s] = distort_labels(self._masks[s], K, lens)
+        if self._knowledge is not None:  # what the robot believes, at its encoder readings
+            readings = fk.qpos[self._known_qadr]
+            sizes = {f"head_{s}": (w, h) for s in HEAD_SIDES}
+            for c, belief in self._knowledge.observe(readings, sizes).items():
+                obs[f"{c}_K"], obs[f"{c}_pose"], obs[f"{c}_dist"] = (
+                    belief.K,
+                    belief.pose,
+                    belief.dist,
+                )
         obs["head_qpos"] = enc
         self._last_left = obs["head_left"]
         return obs
@@ -319,3 +366,25 @@ class ExplorationEnv(gym.Env):
             "saccade_s": saccade_s,
             "saccades": self._saccades,
         }
+
+
+def true_model(scene, errors: ModelErrors) -> mujoco.MjModel:
+    """:func:`~ipbench.envs.exploration_scene.build_model` of ``scene`` in the TRUE cell: the
+    work cell spec with ``errors`` applied (:func:`~ipbench.envs.model_errors.apply_model_errors`)
+    before the room and objects are added; ``ModelErrors.none()`` gives ``build_model``'s model
+    (``tests/test_extrinsics.py`` checks it). Mirrors ``build_model`` step by step."""
+    spec = build_workcell_spec()
+    apply_model_errors(spec, errors)
+    add_room(spec, scene.posters)
+    for obj in scene.objects:
+        body = add_object(spec, obj.instance, obj.name, pos=obj.position, quat=obj.quat)
+        for joint in list(body.joints):  # static: nothing touches them in this task
+            spec.delete(joint)
+    spec.add_key(name="home")
+    model = spec.compile()
+    key = model.key("home").id
+    for j, q in zip(GAZE_JOINTS, scene.home_gaze, strict=True):
+        model.key_qpos[key, model.jnt_qposadr[model.joint(j).id]] = q
+    for a in range(model.nu):
+        model.key_ctrl[key, a] = model.key_qpos[key, model.jnt_qposadr[model.actuator_trnid[a, 0]]]
+    return model

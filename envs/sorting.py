@@ -55,6 +55,7 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from functools import lru_cache
 
+import cv2
 import gymnasium as gym
 import mujoco
 import numpy as np
@@ -70,7 +71,15 @@ from ipbench.assets.compose import (
 )
 from ipbench.assets.objects import CATALOGS, CATEGORIES
 from ipbench.envs.depth_noise import STRUCTURED_LIGHT, DepthNoiseConfig, DepthNoiseModel
+from ipbench.envs.extrinsics import (
+    DIST_SIZE,
+    CameraKnowledge,
+    check_extrinsics,
+    distort_labels,
+)
 from ipbench.envs.layout import SCENES, Layout, sample_layout, scenes_for
+from ipbench.envs.lens_distortion import distort_image
+from ipbench.envs.model_errors import apply_model_errors, sample_model_errors
 from ipbench.envs.robot import MotionConfig, RobotController, ik_model
 from ipbench.envs.sensors import (
     SensorRenderer,
@@ -232,6 +241,16 @@ class SortingConfig:
         (:class:`~ipbench.envs.world.PhysicsConfig`; the default changes nothing, as v0/v1
         run; ``Sorting-v2``: :data:`~ipbench.envs.world.FAST_PHYSICS`, objects at rest
         sleep).
+    extrinsics : what the robot knows of its cameras (:mod:`ipbench.envs.extrinsics`):
+        ``"true"`` (default; every released id: the simulator's values, the world as before),
+        ``"nominal"`` or ``"calibrated"``: the world is the true cell of ``robot_seed``
+        (:func:`~ipbench.envs.model_errors.sample_model_errors`; images distorted by its
+        lenses, RGB bilinear, depth and ``wrist_mask`` nearest), ``*_K``/``*_pose`` are the
+        robot's beliefs, and the observation gains ``wrist_dist``/``head_*_dist`` (5,), the
+        distortion the robot believes (zeros for ``nominal``).
+    robot_seed : seed of the true cell's model errors (``nominal``/``calibrated`` only).
+    calibration : path of a calibration file (``ipbench calibrate --robot-seed R``) for
+        ``extrinsics="calibrated"``; None otherwise.
     """
 
     scene: str = "uncluttered"
@@ -251,9 +270,13 @@ class SortingConfig:
     cameras: tuple[str, ...] = CAMERAS
     physics: PhysicsConfig = field(default_factory=PhysicsConfig)
     pick_command: bool = False
+    extrinsics: str = "true"
+    robot_seed: int = 0
+    calibration: str | None = None
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "cameras", _cameras(self.cameras))
+        check_extrinsics(self.extrinsics, self.calibration, self.robot_seed)
 
 
 V0: dict = {
@@ -312,6 +335,14 @@ class SortingEnv(gym.Env):
         self._wrist_seg: np.ndarray | None = None
         self._frame_listeners: list[tuple[float, Callable[[], None]]] = []
         self._robot_joints = ROBOT_JOINTS
+        self._knowledge: CameraKnowledge | None = None  # None: extrinsics="true"
+        if self.config.extrinsics != "true":
+            names = [c for g in self.config.cameras for c in ((g,) if g == "wrist" else
+                     tuple(f"head_{s}" for s in HEAD_SIDES))]  # fmt: skip
+            self._knowledge = CameraKnowledge.build(
+                self.config.extrinsics, names, self.config.calibration
+            )
+            self._errors = sample_model_errors(self.config.robot_seed)
         hh, hw = self.config.head_size
         mat = spaces.Box(-np.inf, np.inf, (3, 3), np.float64)
         pose = spaces.Box(-np.inf, np.inf, (4, 4), np.float64)
@@ -332,6 +363,9 @@ class SortingEnv(gym.Env):
                     f"head_{side}_K": mat,
                     f"head_{side}_pose": pose,
                 }
+        if self._knowledge is not None:  # the distortion the robot believes
+            dist = spaces.Box(-np.inf, np.inf, (DIST_SIZE,), np.float64)
+            obs_spaces |= {f"{c}_dist": dist for c in self._knowledge.cameras}
         self.observation_space = spaces.Dict(obs_spaces)  # (keys sorted, as before)
         self.action_space = spaces.Dict(
             {
@@ -394,6 +428,8 @@ class SortingEnv(gym.Env):
                 spec.joint(
                     f"{GRIPPER_ARM}_gripper_finger_{finger}"
                 ).armature = self.config.finger_armature
+        if self._knowledge is not None:  # the true cell (extrinsics "nominal"/"calibrated")
+            apply_model_errors(spec, self._errors)
         self.world = build_world(layout, spec, self.config.physics)
         self.model = self.world.model
         self.data = mujoco.MjData(self.model)
@@ -422,6 +458,10 @@ class SortingEnv(gym.Env):
         # (ngeom + 1,): shiny geoms; the last entry stands for the background (id -1)
         self._specular_geoms = np.append(specular_geoms(self.model), False)
         self._robot_qadr = np.array([m.jnt_qposadr[m.joint(j).id] for j in self._robot_joints])
+        if self._knowledge is not None:  # the encoders the nominal FK reads, by joint name
+            self._known_qadr = np.array(
+                [m.jnt_qposadr[m.joint(j).id] for j in self._knowledge.joint_names]
+            )
         # geom id -> object id (the last entry stands for the background, id -1)
         self._mask_lut = np.full(m.ngeom + 1, -1, np.int16)
         for g, k in self.world.object_geoms.items():
@@ -658,8 +698,13 @@ class SortingEnv(gym.Env):
             h, w = WRIST_SIZE
             rgb, depth = r.render_rgbd(d, WRIST_CAMERA, w, h)
             seg = r.render_segmentation(d, WRIST_CAMERA, w, h)
-            self._wrist_seg = seg
             k_wrist = intrinsics(m, WRIST_CAMERA, w, h)
+            if self._knowledge is not None:  # the true lens
+                lens = self._errors.distortion[WRIST_CAMERA]
+                rgb = distort_image(rgb, k_wrist.K, lens)
+                depth = distort_image(depth, k_wrist.K, lens, interpolation=cv2.INTER_NEAREST)
+                seg = distort_labels(seg, k_wrist.K, lens)
+            self._wrist_seg = seg
             specular = self._specular_geoms[seg] if self._noise.uses_specular else None
             depth = self._noise.apply(
                 depth, k_wrist.fx, k_wrist.fy, self.np_random, specular=specular, unit=self._unit
@@ -675,6 +720,17 @@ class SortingEnv(gym.Env):
                 obs[f"head_{side}"] = r.render_rgb(d, cam, hw, hh)
                 obs[f"head_{side}_K"] = intrinsics(m, cam, hw, hh).K
                 obs[f"head_{side}_pose"] = camera_pose(m, d, cam)
+                if self._knowledge is not None:  # the true lens
+                    lens = self._errors.distortion[cam]
+                    image, K = obs[f"head_{side}"], obs[f"head_{side}_K"]  # noqa: N806
+                    obs[f"head_{side}"] = distort_image(image, K, lens)
+        if self._knowledge is not None:  # what the robot believes, at its encoder readings
+            hh, hw = self.config.head_size
+            sizes = {c: (WRIST_SIZE[1], WRIST_SIZE[0]) if c == "wrist" else (hw, hh)
+                     for c in self._knowledge.cameras}  # fmt: skip
+            for c, belief in self._knowledge.observe(d.qpos[self._known_qadr], sizes).items():
+                obs[f"{c}_K"], obs[f"{c}_pose"] = belief.K, belief.pose
+                obs[f"{c}_dist"] = belief.dist
         return obs
 
     def _all_statuses(self) -> list[str]:

@@ -13,7 +13,8 @@ and the robot samples views automatically, as the thesis did with its arm:
   both find the whole board. *Choice*: the PTUs are fixed at one gaze per run, so each head
   camera's hand-eye ``X`` is camera-to-robot-base at that gaze (the file format's
   ``eye_to_hand`` X, Fig. 4.4's head calibrated against the robot base), and the stereo
-  transform is the one at that gaze; the gaze is recorded in :class:`HeadViews`. (With the
+  transform is the one at that gaze; the gaze is recorded in :class:`HeadViews` and in the
+  file's ``head_gaze``. (With the
   PTUs moving, ``X`` would instead be taken relative to the tilt link through the encoders.)
 - **wrist** (eye-in-hand): the left gripper holds the board still, face up; the right arm
   moves the Xtion around it (viewpoints within ``wrist_tilt_deg`` of the board's normal at
@@ -548,7 +549,8 @@ def calibrate_capture(capture: CalibrationCapture) -> CellCalibration:
         )
     cameras = tuple(CameraCalibration(n, i.K, i.dist, i.image_size, i.rms_px)
                     for n, i in intr.items())  # fmt: skip
-    file = CalibrationFile(cameras, entries, stereo_entry, capture.config.seed)
+    gaze = None if capture.head is None else capture.head.gaze  # where the head's X holds
+    file = CalibrationFile(cameras, entries, stereo_entry, capture.config.seed, head_gaze=gaze)
     return CellCalibration(file, intr, all_hand_eye, stereo, capture)
 
 

@@ -15,13 +15,20 @@ shortest round-trip form, so a saved file loads bit-identical):
     hand_eye         {camera: {method, setup, X (4x4, m), residual_rotation_deg,
                                residual_translation_mm, n_poses}}
     stereo           {left, right, left_to_right (4x4, m), rms_px} or null
+    head_gaze        optional: (4,) PTU encoder readings (left pan, left tilt, right pan,
+                     right tilt), rad, at which the head's eye-to-hand X and the stereo
+                     transform were measured; absent in files that predate it (they load,
+                     with ``head_gaze = None``) and written only when known
 
 Camera names are the observation's (``head_left``, ``head_right``, ``wrist``). Transforms are
 named as :mod:`~ipbench.perception.calibration.poses` (``a_to_b`` maps frame ``a``'s
 coordinates to frame ``b``'s): the stereo ``left_to_right`` is the right-from-left transform;
 a hand-eye ``X`` is :mod:`~ipbench.perception.calibration.hand_eye`'s (camera-to-gripper for
-``eye_in_hand``, camera-to-base for ``eye_to_hand``) and its residuals are the RMS over pose
-pairs. Rotations must be proper to ``poses.ORTHONORMAL_TOLERANCE``.
+``eye_in_hand``, camera-to-base for ``eye_to_hand``; a head camera's camera-to-base holds at
+``head_gaze`` only) and its residuals are the RMS over pose pairs. ``head_gaze`` is an optional
+key of format version 1 (added with issue 14's ``extrinsics="calibrated"``), so the version did
+not change: every file written before loads unchanged. Rotations must be proper to
+``poses.ORTHONORMAL_TOLERANCE``.
 
 :meth:`CalibrationFile.load` refuses a missing file, non-JSON, another format or version,
 missing or unknown keys, wrong shapes, non-finite values, improper rotations, entries naming
@@ -73,6 +80,7 @@ _KEYS = {
                  "n_poses"),
     "stereo": ("left", "right", "left_to_right", "rms_px"),
 }  # fmt: skip
+_OPTIONAL = {"the file": ("head_gaze",)}  # keys a file may lack (older files)
 
 
 def _text(value, where: str, valid: tuple[str, ...] = ()) -> str:
@@ -142,18 +150,19 @@ def _rigid(value, where: str) -> np.ndarray:
 
 
 def _keys(value, where: str, kind: str) -> dict:
-    keys = _KEYS[kind]
+    keys, optional = _KEYS[kind], _OPTIONAL.get(kind, ())
     if not isinstance(value, dict):
         raise CalibrationError(f"{where} is a {type(value).__name__}; valid: an object {keys}")
     missing = [k for k in keys if k not in value]
-    unknown = sorted(set(value) - set(keys))
+    unknown = sorted(set(value) - set(keys) - set(optional))
     if missing or unknown:
         problems = []
         if missing:
             problems.append(f"lacks keys {missing}")
         if unknown:
             problems.append(f"has unknown keys {unknown}")
-        raise CalibrationError(f"{where} {' and '.join(problems)}; valid keys: {keys}")
+        extra = f" (optional: {optional})" if optional else ""
+        raise CalibrationError(f"{where} {' and '.join(problems)}; valid keys: {keys}{extra}")
     return value
 
 
@@ -306,6 +315,11 @@ class CalibrationFile:
         The ipbench that produced it (default: the installed one).
     format_version : int
         :data:`FORMAT_VERSION`; no other is accepted.
+    head_gaze : (4,) float array or None
+        PTU encoder readings (left pan, left tilt, right pan, right tilt), rad, at which the
+        head cameras' eye-to-hand ``X`` (and the stereo transform) were measured; ``None`` when
+        unknown (files that predate the key). Needed by ``extrinsics="calibrated"`` to carry a
+        head camera's pose to another gaze (:mod:`ipbench.envs.extrinsics`).
     """
 
     cameras: tuple[CameraCalibration, ...]
@@ -315,6 +329,7 @@ class CalibrationFile:
     created: str = field(default_factory=_now)
     ipbench_version: str = field(default_factory=_ipbench_version)
     format_version: int = FORMAT_VERSION
+    head_gaze: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         cameras = tuple(self.cameras)
@@ -353,6 +368,8 @@ class CalibrationFile:
             raise CalibrationError(
                 f"format version {version!r}; this ipbench reads version {FORMAT_VERSION} only"
             )
+        if self.head_gaze is not None:
+            object.__setattr__(self, "head_gaze", _array(self.head_gaze, "head_gaze (rad)", (4,)))
         object.__setattr__(self, "cameras", cameras)
         object.__setattr__(self, "hand_eye", MappingProxyType(dict(self.hand_eye)))
 
@@ -371,6 +388,7 @@ class CalibrationFile:
     def to_dict(self) -> dict:
         """The file's JSON object (plain lists, numbers and strings)."""
         s = self.stereo
+        gaze = {} if self.head_gaze is None else {"head_gaze": self.head_gaze.tolist()}
         return {
             "format": FORMAT, "format_version": self.format_version, "created": self.created,
             "ipbench_version": self.ipbench_version, "seed": self.seed,
@@ -385,7 +403,7 @@ class CalibrationFile:
             "stereo": None if s is None else {"left": s.left, "right": s.right,
                                               "left_to_right": s.left_to_right.tolist(),
                                               "rms_px": s.rms_px},
-        }  # fmt: skip
+        } | gaze  # fmt: skip
 
     @classmethod
     def from_dict(cls, data) -> CalibrationFile:
@@ -422,7 +440,7 @@ class CalibrationFile:
         if stereo is not None:
             stereo = StereoEntry(**_keys(stereo, "stereo", "stereo"))
         return cls(tuple(cameras), hand_eye, stereo, data["seed"], data["created"],
-                   data["ipbench_version"], version)  # fmt: skip
+                   data["ipbench_version"], version, data.get("head_gaze"))  # fmt: skip
 
     def save(self, path: str | os.PathLike, overwrite: bool = False) -> Path:
         """Write the file as JSON (module docstring) and return its path.
