@@ -35,9 +35,7 @@ import mujoco
 import numpy as np
 from gymnasium import spaces
 
-from ipbench.assets.compose import HEAD_SIDES, build_workcell_spec
-from ipbench.assets.objects import add_object
-from ipbench.assets.room import add_room
+from ipbench.assets.compose import HEAD_SIDES
 from ipbench.envs.exploration_scene import (
     DATABASE_CLASSES,
     GAZE_JOINTS,
@@ -48,7 +46,7 @@ from ipbench.envs.exploration_scene import (
 from ipbench.envs.exploration_scoring import GroundTruthObject, Scorer
 from ipbench.envs.extrinsics import DIST_SIZE, CameraKnowledge, check_extrinsics, distort_labels
 from ipbench.envs.lens_distortion import distort_image
-from ipbench.envs.model_errors import ModelErrors, apply_model_errors, sample_model_errors
+from ipbench.envs.model_errors import sample_model_errors
 from ipbench.envs.ptu import PtuError, PtuSpec, head_spec_arrays, ptu_spec, setpoint_step
 from ipbench.envs.sensors import SensorRenderer, camera_pose, intrinsics
 from ipbench.envs.sorting import InvalidActionError, ResetNeededError
@@ -60,7 +58,6 @@ __all__ = [
     "ExplorationEnv",
     "InvalidActionError",
     "ResetNeededError",
-    "true_model",
 ]
 
 REPORT_KINDS: tuple[str, ...] = ("none", "object", "done")
@@ -167,7 +164,7 @@ class ExplorationEnv(gym.Env):
         if self._knowledge is None:
             self.model = m = build_model(self.scene)
         else:  # the true cell
-            self.model = m = true_model(self.scene, self._errors)
+            self.model = m = build_model(self.scene, self._errors)
         if tuple(PtuSpec.from_model(m, f"head_{s}_") for s in HEAD_SIDES) != self.ptus:
             raise RuntimeError("the work cell's PTUs differ from assets/head/ptu_d46.xml")
         self.data = mujoco.MjData(m)
@@ -366,25 +363,3 @@ class ExplorationEnv(gym.Env):
             "saccade_s": saccade_s,
             "saccades": self._saccades,
         }
-
-
-def true_model(scene, errors: ModelErrors) -> mujoco.MjModel:
-    """:func:`~ipbench.envs.exploration_scene.build_model` of ``scene`` in the TRUE cell: the
-    work cell spec with ``errors`` applied (:func:`~ipbench.envs.model_errors.apply_model_errors`)
-    before the room and objects are added; ``ModelErrors.none()`` gives ``build_model``'s model
-    (``tests/test_extrinsics.py`` checks it). Mirrors ``build_model`` step by step."""
-    spec = build_workcell_spec()
-    apply_model_errors(spec, errors)
-    add_room(spec, scene.posters)
-    for obj in scene.objects:
-        body = add_object(spec, obj.instance, obj.name, pos=obj.position, quat=obj.quat)
-        for joint in list(body.joints):  # static: nothing touches them in this task
-            spec.delete(joint)
-    spec.add_key(name="home")
-    model = spec.compile()
-    key = model.key("home").id
-    for j, q in zip(GAZE_JOINTS, scene.home_gaze, strict=True):
-        model.key_qpos[key, model.jnt_qposadr[model.joint(j).id]] = q
-    for a in range(model.nu):
-        model.key_ctrl[key, a] = model.key_qpos[key, model.jnt_qposadr[model.actuator_trnid[a, 0]]]
-    return model

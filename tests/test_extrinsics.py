@@ -12,7 +12,7 @@ from gymnasium.utils.env_checker import check_env
 
 import ipbench.envs  # noqa: F401  (registers the ids)
 from ipbench.assets.compose import build_workcell_spec
-from ipbench.envs.exploration import ExplorationEnv, true_model
+from ipbench.envs.exploration import ExplorationEnv
 from ipbench.envs.exploration_scene import build_model, sample_scene
 from ipbench.envs.extrinsics import (
     EXTRINSICS,
@@ -216,9 +216,9 @@ def test_the_calibrated_head_pose_follows_the_encoders_after_a_gaze_change(calib
         assert _error(obs[f"head_{side}_pose"], truth)[0] < 10.0  # mm, still close
 
 
-def test_true_model_without_errors_is_build_model():
+def test_build_model_with_no_errors_is_the_nominal_model():
     scene = sample_scene("simple", 5)
-    a, b = build_model(scene), true_model(scene, ModelErrors.none())
+    a, b = build_model(scene), build_model(scene, ModelErrors.none())
     for name in ("body_pos", "body_quat", "cam_pos", "cam_quat", "key_qpos", "key_ctrl",
                  "geom_size", "jnt_range"):  # fmt: skip
         assert np.array_equal(getattr(a, name), getattr(b, name)), name
