@@ -26,6 +26,7 @@ import mujoco
 import numpy as np
 
 from ipbench.assets.objects import texture_parts as tp
+from ipbench.assets.quads import add_textured_quad
 
 __all__ = [
     "CEILING_HEIGHT",
@@ -176,25 +177,6 @@ def add_room(spec: mujoco.MjSpec, posters: tuple[Poster, ...] = ()) -> None:
         w, h = POSTER_SIZES[poster.size]
         up = np.array([0.0, 0.0, 1.0])
         corners = [centre + (su * w / 2) * right + (sv * h / 2) * up for su, sv in
-                   ((-1, -1), (1, -1), (1, 1), (-1, 1))]  # fmt: skip
-        img = poster_image(poster.seed)
-        name = f"room_poster_{k:02d}"
-        tex = spec.add_texture(
-            name=f"{name}_tex", type=mujoco.mjtTexture.mjTEXTURE_2D,
-            width=img.shape[1], height=img.shape[0], nchannel=3,
-        )  # fmt: skip
-        tex.data = img.tobytes()
-        mat = spec.add_material(name=f"{name}_mat", rgba=[1.0, 1.0, 1.0, 1.0], specular=0.0)
-        mat.textures[mujoco.mjtTextureRole.mjTEXROLE_RGB] = f"{name}_tex"
-        # counter-clockwise seen from inside the room (along ``normal``); row 0 of the
-        # image (v = 0) at the top
-        inward = np.dot(np.cross(right, up), normal) > 0
-        faces = [0, 1, 2, 0, 2, 3] if inward else [0, 2, 1, 0, 3, 2]
-        spec.add_mesh(
-            name=f"{name}_mesh", uservert=np.ravel(corners).tolist(), userface=faces,
-            usertexcoord=[0.0, 1.0, 1.0, 1.0, 1.0, 0.0, 0.0, 0.0],
-        ).inertia = mujoco.mjtMeshInertia.mjMESH_INERTIA_SHELL  # fmt: skip
-        spec.worldbody.add_geom(
-            name=f"{name}_visual", type=mujoco.mjtGeom.mjGEOM_MESH, meshname=f"{name}_mesh",
-            material=f"{name}_mat", contype=0, conaffinity=0, group=_VISUAL_GROUP, mass=0.0,
-        )  # fmt: skip
+                   ((-1, 1), (1, 1), (1, -1), (-1, -1))]  # fmt: skip
+        add_textured_quad(spec, spec.worldbody, f"room_poster_{k:02d}",
+                          poster_image(poster.seed), corners, normal, _VISUAL_GROUP)  # fmt: skip
