@@ -12,7 +12,7 @@ poses ``*_pose`` and (not ``"true"``) distortion ``*_dist`` come from:
   model (:func:`~ipbench.envs.sensors.intrinsics`), ``dist`` zeros (a pinhole), the pose by
   forward kinematics of the NOMINAL model at the joint encoder readings.
 * ``"calibrated"``: the same true world; ``K`` and ``dist`` from a calibration file
-  (:class:`~ipbench.perception.calibration.calibration_file.CalibrationFile`, written by
+  (:class:`~ipbench.envs.calibration_file.CalibrationFile`, written by
   ``ipbench calibrate``), ``K`` scaled to the observed image size; the wrist pose is the nominal
   FK of the flange ``right_flange`` times the file's eye-in-hand ``X`` (camera-to-flange); a head
   camera's pose is the file's eye-to-hand ``X`` (camera-to-``base`` at the file's ``head_gaze``
@@ -37,11 +37,10 @@ import mujoco
 import numpy as np
 
 from ipbench.assets.compose import CAMERA_ARM, HEAD_SIDES, build_workcell_spec
+from ipbench.envs.calibration_file import CalibrationFile, CalibrationFileError
 from ipbench.envs.lens_distortion import LensDistortion, distort_image
 from ipbench.envs.ptu import AXES
 from ipbench.envs.sensors import camera_pose, intrinsics
-from ipbench.perception.calibration.calibration_file import CalibrationFile
-from ipbench.perception.calibration.errors import CalibrationError
 
 __all__ = [
     "CAMERA_MODEL_NAMES",
@@ -263,7 +262,7 @@ def _load(path, cameras: tuple[str, ...]) -> CalibrationFile:
     """The calibration file at ``path``, checked to hold what ``cameras`` need."""
     try:
         file = CalibrationFile.load(Path(path))
-    except CalibrationError as error:
+    except CalibrationFileError as error:
         raise ExtrinsicsError(f"extrinsics='calibrated': {error}") from None
     redo = f"regenerate it with `ipbench calibrate --cameras head,wrist --out {path}`"
     missing = [c for c in cameras if c not in file.camera_names or c not in file.hand_eye]

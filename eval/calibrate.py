@@ -61,18 +61,18 @@ from ipbench.assets.compose import (
     build_workcell_spec,
     head_gaze,
 )
+from ipbench.envs.calibration_file import (
+    CalibrationFile,
+    CameraCalibration,
+    HandEyeEntry,
+    StereoEntry,
+)
 from ipbench.envs.ik import ArmIK, look_at_rotation
 from ipbench.envs.lens_distortion import distort_image
 from ipbench.envs.model_errors import ModelErrors, apply_model_errors, sample_model_errors
 from ipbench.envs.ptu import ptu_spec
 from ipbench.envs.sensors import SensorRenderer, camera_pose, intrinsics
 from ipbench.envs.sorting import WRIST_SIZE
-from ipbench.perception.calibration.calibration_file import (
-    CalibrationFile,
-    CameraCalibration,
-    HandEyeEntry,
-    StereoEntry,
-)
 from ipbench.perception.calibration.errors import CalibrationError
 from ipbench.perception.calibration.hand_eye import (
     HAND_EYE_METHODS,

@@ -17,6 +17,7 @@ from ipbench.assets.calibration_target import (  # noqa: E402
     add_target_plate,
 )
 from ipbench.assets.compose import build_workcell_spec  # noqa: E402
+from ipbench.envs.calibration_file import CalibrationFile  # noqa: E402
 from ipbench.eval.calibrate import (  # noqa: E402
     CalibrationCaptureConfig,
     CalibrationRoutineError,
@@ -25,7 +26,6 @@ from ipbench.eval.calibrate import (  # noqa: E402
     calibration_truth,
     capture_views,
 )
-from ipbench.perception.calibration.calibration_file import CalibrationFile  # noqa: E402
 from ipbench.perception.calibration.hand_eye import HAND_EYE_METHODS  # noqa: E402
 from ipbench.perception.calibration.poses import (  # noqa: E402
     invert,

@@ -8,14 +8,14 @@ import cv2
 import numpy as np
 import pytest
 
-from ipbench.perception.calibration.calibration_file import (
+from ipbench.envs.calibration_file import (
     FORMAT_VERSION,
     CalibrationFile,
+    CalibrationFileError,
     CameraCalibration,
     HandEyeEntry,
     StereoEntry,
 )
-from ipbench.perception.calibration.errors import CalibrationError
 
 CAMERAS = ("head_left", "head_right", "wrist")
 
@@ -88,7 +88,9 @@ def test_a_run_without_hand_eye_or_stereo_round_trips(tmp_path):
 def test_existing_file_is_not_overwritten_unless_asked(tmp_path):
     path = tmp_path / "calib.json"
     path.write_text("precious")
-    with pytest.raises(CalibrationError, match="exists and was not overwritten.*overwrite=True"):
+    with pytest.raises(
+        CalibrationFileError, match="exists and was not overwritten.*overwrite=True"
+    ):
         make().save(path)
     assert path.read_text() == "precious"
     make(1).save(path, overwrite=True)
@@ -97,12 +99,12 @@ def test_existing_file_is_not_overwritten_unless_asked(tmp_path):
 
 
 def test_missing_file_and_folder(tmp_path):
-    with pytest.raises(CalibrationError, match=r"nope.json does not exist; make one with "
+    with pytest.raises(CalibrationFileError, match=r"nope.json does not exist; make one with "
                        r"`ipbench calibrate --out .*nope.json`"):  # fmt: skip
         CalibrationFile.load(tmp_path / "nope.json")
-    with pytest.raises(CalibrationError, match="is a folder"):
+    with pytest.raises(CalibrationFileError, match="is a folder"):
         CalibrationFile.load(tmp_path)
-    with pytest.raises(CalibrationError, match="folder .* does not exist"):
+    with pytest.raises(CalibrationFileError, match="folder .* does not exist"):
         make().save(tmp_path / "no" / "calib.json")
 
 
@@ -186,7 +188,7 @@ SCALED = (np.eye(4) * [1.01, 1.0, 1.0, 1.0]).tolist()
 )  # fmt: skip
 def test_bad_files_are_refused_with_what_was_wrong(tmp_path, data, message):
     path = written(tmp_path, data)
-    with pytest.raises(CalibrationError, match=message) as caught:
+    with pytest.raises(CalibrationFileError, match=message) as caught:
         CalibrationFile.load(path)
     assert f"ipbench calibrate --out {path}" in str(caught.value)
     assert str(path) in str(caught.value)
@@ -195,27 +197,27 @@ def test_bad_files_are_refused_with_what_was_wrong(tmp_path, data, message):
 def test_non_finite_json_tokens_are_refused(tmp_path):
     text = json.dumps(make().to_dict()).replace('"rms_px": 0.21', '"rms_px": NaN')
     assert "NaN" in text
-    with pytest.raises(CalibrationError, match=r"stereo.rms_px is nan"):
+    with pytest.raises(CalibrationFileError, match=r"stereo.rms_px is nan"):
         CalibrationFile.load(written(tmp_path, text))
 
 
 def test_hand_eye_of_an_uncalibrated_camera_is_refused(tmp_path):
     data = make().to_dict()
     data["hand_eye"]["kinect"] = data["hand_eye"]["wrist"]
-    with pytest.raises(CalibrationError, match=r"hand_eye names camera 'kinect'.*valid: \["):
+    with pytest.raises(CalibrationFileError, match=r"hand_eye names camera 'kinect'.*valid: \["):
         CalibrationFile.load(written(tmp_path, data))
 
 
 def test_cameras_other_than_expected_are_refused(tmp_path):
     path = make().save(tmp_path / "calib.json")
-    with pytest.raises(CalibrationError) as caught:
+    with pytest.raises(CalibrationFileError) as caught:
         CalibrationFile.load(path, expect_cameras=("head_left", "head_right"))
     text = str(caught.value)
     assert "calibrates cameras ['head_left', 'head_right', 'wrist']" in text
     assert "expected ['head_left', 'head_right']" in text
     assert "not expected: ['wrist']" in text
     assert f"ipbench calibrate --cameras ... --out {path}" in text
-    with pytest.raises(CalibrationError, match=r"missing: \['kinect'\]"):
+    with pytest.raises(CalibrationFileError, match=r"missing: \['kinect'\]"):
         CalibrationFile.load(path, expect_cameras=[*CAMERAS, "kinect"])
     assert CalibrationFile.load(path, expect_cameras=reversed(CAMERAS)).camera_names == CAMERAS
 
@@ -237,7 +239,7 @@ def test_cameras_other_than_expected_are_refused(tmp_path):
     ],
 )  # fmt: skip
 def test_bad_entries_are_refused_when_built(build, message):
-    with pytest.raises(CalibrationError, match=message):
+    with pytest.raises(CalibrationFileError, match=message):
         build()
 
 
@@ -248,3 +250,13 @@ def test_opencv_shaped_distortion_is_flattened_and_arrays_are_read_only():
     with pytest.raises(ValueError, match="read-only"):
         camera.K[0, 0] = 2.0
     assert dist.flags.writeable  # the caller's array untouched
+
+
+def test_the_files_vocabulary_is_the_routines():
+    """The file (read by the envs, which may not import perception) names the methods and
+    set-ups as ipbench.perception.calibration.hand_eye does."""
+    from ipbench.envs import calibration_file as f
+    from ipbench.perception.calibration import hand_eye as h
+
+    assert f.METHODS == h.HAND_EYE_METHODS + h.ROBOT_WORLD_METHODS
+    assert f.SETUPS == h.SETUPS and f.MIN_POSES == h.MIN_POSES

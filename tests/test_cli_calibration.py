@@ -2,8 +2,8 @@
 
 import pytest
 
+from ipbench.envs.calibration_file import CalibrationFile
 from ipbench.eval.cli import main
-from ipbench.perception.calibration.calibration_file import CalibrationFile
 
 
 def test_calibrate_writes_a_file_that_loads_and_keeps_an_existing_one(tmp_path, capsys):

@@ -28,7 +28,7 @@ a hand-eye ``X`` is :mod:`~ipbench.perception.calibration.hand_eye`'s (camera-to
 ``head_gaze`` only) and its residuals are the RMS over pose pairs. ``head_gaze`` is an optional
 key of format version 1 (added with issue 14's ``extrinsics="calibrated"``), so the version did
 not change: every file written before loads unchanged. Rotations must be proper to
-``poses.ORTHONORMAL_TOLERANCE``.
+:data:`ORTHONORMAL_TOLERANCE`.
 
 :meth:`CalibrationFile.load` refuses a missing file, non-JSON, another format or version,
 missing or unknown keys, wrong shapes, non-finite values, improper rotations, entries naming
@@ -50,17 +50,12 @@ from types import MappingProxyType
 
 import numpy as np
 
-from ipbench.perception.calibration.errors import CalibrationError
-from ipbench.perception.calibration.hand_eye import (
-    HAND_EYE_METHODS,
-    MIN_POSES,
-    ROBOT_WORLD_METHODS,
-    SETUPS,
-)
-from ipbench.perception.calibration.poses import as_transform
-
 __all__ = [
+    "CalibrationFileError",
     "DIST_LENGTHS",
+    "METHODS",
+    "MIN_POSES",
+    "SETUPS",
     "FORMAT",
     "FORMAT_VERSION",
     "CalibrationFile",
@@ -68,6 +63,19 @@ __all__ = [
     "HandEyeEntry",
     "StereoEntry",
 ]
+
+# The file's vocabulary: the names ipbench.perception.calibration.hand_eye gives its methods and
+# set-ups (the envs read this file and may not import perception; a test holds them equal)
+METHODS = ("tsai", "park", "horaud", "andreff", "daniilidis", "shah", "li")
+SETUPS = ("eye_in_hand", "eye_to_hand")
+MIN_POSES = 3
+ORTHONORMAL_TOLERANCE = 1e-5
+
+
+class CalibrationFileError(ValueError):
+    """A calibration file or entry that cannot be used; the message says why and how to
+    regenerate it."""
+
 
 FORMAT = "ipbench-calibration"
 FORMAT_VERSION = 1
@@ -86,20 +94,20 @@ _OPTIONAL = {"the file": ("head_gaze",)}  # keys a file may lack (older files)
 def _text(value, where: str, valid: tuple[str, ...] = ()) -> str:
     if not isinstance(value, str) or not value.strip() or (valid and value not in valid):
         options = ", ".join(valid) if valid else "a non-empty string"
-        raise CalibrationError(f"{where} is {value!r}; valid: {options}")
+        raise CalibrationFileError(f"{where} is {value!r}; valid: {options}")
     return value
 
 
 def _number(value, where: str) -> float:
     ok = isinstance(value, (int, float, np.integer, np.floating)) and not isinstance(value, bool)
     if not (ok and math.isfinite(value) and value >= 0):
-        raise CalibrationError(f"{where} is {value!r}; valid: a finite number >= 0")
+        raise CalibrationFileError(f"{where} is {value!r}; valid: a finite number >= 0")
     return float(value)
 
 
 def _int(value, where: str, least: int) -> int:
     if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < least:
-        raise CalibrationError(f"{where} is {value!r}; valid: an integer >= {least}")
+        raise CalibrationFileError(f"{where} is {value!r}; valid: an integer >= {least}")
     return int(value)
 
 
@@ -110,11 +118,11 @@ def _array(value, where: str, shape: tuple[int, ...]) -> np.ndarray:
     except (TypeError, ValueError):  # ragged, None, ...
         numeric = False
     if not numeric:
-        raise CalibrationError(f"{where} is not an array of numbers; valid: shape {shape}")
+        raise CalibrationFileError(f"{where} is not an array of numbers; valid: shape {shape}")
     if array.shape != shape:
-        raise CalibrationError(f"{where} has shape {array.shape}; valid: shape {shape}")
+        raise CalibrationFileError(f"{where} has shape {array.shape}; valid: shape {shape}")
     if not np.all(np.isfinite(array)):
-        raise CalibrationError(f"{where} has non-finite values (NaN or inf); valid: finite")
+        raise CalibrationFileError(f"{where} has non-finite values (NaN or inf); valid: finite")
     array.flags.writeable = False
     return array
 
@@ -122,7 +130,7 @@ def _array(value, where: str, shape: tuple[int, ...]) -> np.ndarray:
 def _intrinsics(value, where: str) -> np.ndarray:
     K = _array(value, where, (3, 3))
     if not (K[0, 0] > 0 and K[1, 1] > 0 and K[1, 0] == 0 and np.array_equal(K[2], [0, 0, 1])):
-        raise CalibrationError(
+        raise CalibrationFileError(
             f"{where} = {K.tolist()} is not a camera matrix; valid: [[fx, s, cx], [0, fy, cy],"
             " [0, 0, 1]] with fx, fy > 0 px"
         )
@@ -135,16 +143,33 @@ def _distortion(value, where: str) -> np.ndarray:
         value = value.ravel()
     length = len(value) if isinstance(value, (list, tuple, np.ndarray)) else None
     if length not in DIST_LENGTHS:
-        raise CalibrationError(
+        raise CalibrationFileError(
             f"{where} has {length} entries; valid: a flat list of"
             f" {', '.join(map(str, DIST_LENGTHS))} OpenCV coefficients (k1, k2, p1, p2[, k3, ...])"
         )
     return _array(value, where, (length,))
 
 
+def _as_transform(value, where: str) -> np.ndarray:
+    """``value`` as a (4, 4) rigid transform: finite, last row [0, 0, 0, 1], proper rotation."""
+    T = _array(value, where, (4, 4))
+    if not np.allclose(T[3], (0.0, 0.0, 0.0, 1.0), atol=ORTHONORMAL_TOLERANCE):
+        raise CalibrationFileError(
+            f"{where} has last row {T[3].tolist()}; valid: [0, 0, 0, 1] (a rigid transform)"
+        )
+    R = T[:3, :3]
+    error = float(np.abs(R.T @ R - np.eye(3)).max())
+    if error > ORTHONORMAL_TOLERANCE or abs(np.linalg.det(R) - 1.0) > ORTHONORMAL_TOLERANCE:
+        raise CalibrationFileError(
+            f"{where} has a rotation part that is not a proper rotation (|R^T R - I| = "
+            f"{error:.2g}, det R = {np.linalg.det(R):.6g}); valid: an orthonormal R with det +1"
+        )
+    return T
+
+
 def _rigid(value, where: str) -> np.ndarray:
     _array(value, where, (4, 4))  # the file's messages: not numbers, shape, non-finite
-    T = as_transform(value, where).copy()
+    T = _as_transform(value, where).copy()
     T.flags.writeable = False
     return T
 
@@ -152,7 +177,7 @@ def _rigid(value, where: str) -> np.ndarray:
 def _keys(value, where: str, kind: str) -> dict:
     keys, optional = _KEYS[kind], _OPTIONAL.get(kind, ())
     if not isinstance(value, dict):
-        raise CalibrationError(f"{where} is a {type(value).__name__}; valid: an object {keys}")
+        raise CalibrationFileError(f"{where} is a {type(value).__name__}; valid: an object {keys}")
     missing = [k for k in keys if k not in value]
     unknown = sorted(set(value) - set(keys) - set(optional))
     if missing or unknown:
@@ -162,7 +187,7 @@ def _keys(value, where: str, kind: str) -> dict:
         if unknown:
             problems.append(f"has unknown keys {unknown}")
         extra = f" (optional: {optional})" if optional else ""
-        raise CalibrationError(f"{where} {' and '.join(problems)}; valid keys: {keys}{extra}")
+        raise CalibrationFileError(f"{where} {' and '.join(problems)}; valid keys: {keys}{extra}")
     return value
 
 
@@ -197,7 +222,7 @@ class CameraCalibration:
         put(self, "dist", _distortion(self.dist, f"{where}.dist"))
         size = self.image_size
         if not (isinstance(size, (list, tuple)) and len(size) == 2):
-            raise CalibrationError(f"{where}.image_size is {size!r}; valid: [width, height] px")
+            raise CalibrationFileError(f"{where}.image_size is {size!r}; valid: [width, height] px")
         put(self, "image_size", (_int(size[0], f"{where}.image_size[0] (width)", 1),
                                  _int(size[1], f"{where}.image_size[1] (height)", 1)))  # fmt: skip
         put(self, "rms_px", _number(self.rms_px, f"{where}.rms_px"))
@@ -210,7 +235,7 @@ class HandEyeEntry:
     Attributes
     ----------
     method : str
-        One of ``hand_eye.HAND_EYE_METHODS`` or ``hand_eye.ROBOT_WORLD_METHODS``.
+        One of :data:`METHODS`.
     setup : str
         ``"eye_in_hand"`` or ``"eye_to_hand"``.
     X : (4, 4) float array
@@ -218,7 +243,7 @@ class HandEyeEntry:
     residual_rotation_deg, residual_translation_mm : float
         RMS residuals of the fit, deg and mm.
     n_poses : int
-        Robot poses used, at least ``hand_eye.MIN_POSES`` (3).
+        Robot poses used, at least :data:`MIN_POSES` (3).
     """
 
     method: str
@@ -230,7 +255,7 @@ class HandEyeEntry:
 
     def __post_init__(self) -> None:
         put = object.__setattr__
-        _text(self.method, "method", HAND_EYE_METHODS + ROBOT_WORLD_METHODS)
+        _text(self.method, "method", METHODS)
         _text(self.setup, "setup", SETUPS)
         put(self, "X", _rigid(self.X, "X"))
         for name in ("residual_rotation_deg", "residual_translation_mm"):
@@ -261,7 +286,7 @@ class StereoEntry:
         _text(self.left, "stereo.left")
         _text(self.right, "stereo.right")
         if self.left == self.right:
-            raise CalibrationError(
+            raise CalibrationFileError(
                 f"stereo.left and stereo.right are both {self.left!r}; valid: two cameras"
             )
         object.__setattr__(
@@ -335,37 +360,37 @@ class CalibrationFile:
         cameras = tuple(self.cameras)
         names = [c.name for c in cameras if isinstance(c, CameraCalibration)]
         if not cameras or len(names) != len(cameras) or len(set(names)) != len(names):
-            raise CalibrationError(
+            raise CalibrationFileError(
                 f"cameras are {names or list(cameras)}; valid: one or more CameraCalibration"
                 " with unique names"
             )
         if not isinstance(self.hand_eye, Mapping):
-            raise CalibrationError("hand_eye is not a mapping; valid: {camera: HandEyeEntry}")
+            raise CalibrationFileError("hand_eye is not a mapping; valid: {camera: HandEyeEntry}")
         stereo = () if self.stereo is None else (self.stereo.left, self.stereo.right)
         for where, name in [("hand_eye", n) for n in self.hand_eye] + [
             ("stereo", n) for n in stereo
         ]:
             if name not in names:
-                raise CalibrationError(
+                raise CalibrationFileError(
                     f"{where} names camera {name!r}, which the file does not calibrate;"
                     f" valid: {names}"
                 )
         if not all(isinstance(e, HandEyeEntry) for e in self.hand_eye.values()):
-            raise CalibrationError("hand_eye has values that are not HandEyeEntry")
+            raise CalibrationFileError("hand_eye has values that are not HandEyeEntry")
         if self.stereo is not None and not isinstance(self.stereo, StereoEntry):
-            raise CalibrationError("stereo is not a StereoEntry; valid: a StereoEntry or None")
+            raise CalibrationFileError("stereo is not a StereoEntry; valid: a StereoEntry or None")
         if self.seed is not None:
             _int(self.seed, "seed", 0)
         try:
             datetime.fromisoformat(_text(self.created, "created"))
         except ValueError:
-            raise CalibrationError(
+            raise CalibrationFileError(
                 f"created is {self.created!r}; valid: an ISO 8601 time, e.g. {_now()!r}"
             ) from None
         _text(self.ipbench_version, "ipbench_version")
         version = self.format_version
         if version != FORMAT_VERSION or isinstance(version, bool):
-            raise CalibrationError(
+            raise CalibrationFileError(
                 f"format version {version!r}; this ipbench reads version {FORMAT_VERSION} only"
             )
         if self.head_gaze is not None:
@@ -383,7 +408,9 @@ class CalibrationFile:
         for c in self.cameras:
             if c.name == name:
                 return c
-        raise CalibrationError(f"no camera {name!r} in the file; valid: {list(self.camera_names)}")
+        raise CalibrationFileError(
+            f"no camera {name!r} in the file; valid: {list(self.camera_names)}"
+        )
 
     def to_dict(self) -> dict:
         """The file's JSON object (plain lists, numbers and strings)."""
@@ -407,21 +434,22 @@ class CalibrationFile:
 
     @classmethod
     def from_dict(cls, data) -> CalibrationFile:
-        """The calibration of a file's JSON object; :class:`CalibrationError` names the bad key."""
+        """The calibration of a file's JSON object; :class:`CalibrationFileError` names the bad
+        key."""
         found = data.get("format") if isinstance(data, dict) else type(data).__name__
         if found != FORMAT:
-            raise CalibrationError(
+            raise CalibrationFileError(
                 f'not an ipbench calibration file ("format" is {found!r}); valid: "{FORMAT}"'
             )
         version = data.get("format_version")
         if version != FORMAT_VERSION or isinstance(version, bool):
-            raise CalibrationError(
+            raise CalibrationFileError(
                 f"format version {version!r}; this ipbench reads version {FORMAT_VERSION} only"
             )
         _keys(data, "the file", "the file")
         for key in ("cameras", "hand_eye"):
             if not isinstance(data[key], dict) or (key == "cameras" and not data[key]):
-                raise CalibrationError(
+                raise CalibrationFileError(
                     f"{key} is {data[key]!r}; valid: an object {{camera name: {{...}}}}"
                     + (" with one or more cameras" if key == "cameras" else "")
                 )
@@ -434,8 +462,8 @@ class CalibrationFile:
             _keys(entry, f"hand_eye.{name}", "hand_eye")
             try:
                 hand_eye[name] = HandEyeEntry(**entry)
-            except CalibrationError as error:
-                raise CalibrationError(f"hand_eye.{name}.{error}") from None
+            except CalibrationFileError as error:
+                raise CalibrationFileError(f"hand_eye.{name}.{error}") from None
         stereo = data["stereo"]
         if stereo is not None:
             stereo = StereoEntry(**_keys(stereo, "stereo", "stereo"))
@@ -445,22 +473,22 @@ class CalibrationFile:
     def save(self, path: str | os.PathLike, overwrite: bool = False) -> Path:
         """Write the file as JSON (module docstring) and return its path.
 
-        An existing file is kept (:class:`CalibrationError`) unless ``overwrite``; the text
+        An existing file is kept (:class:`CalibrationFileError`) unless ``overwrite``; the text
         goes to a temporary file beside it and is moved into place, so a failed write loses
         nothing.
         """
         path = Path(path)
         if path.is_dir():
-            raise CalibrationError(
+            raise CalibrationFileError(
                 f"{path} is a folder; valid: a file path, e.g. {path}/calib.json"
             )
         if path.exists() and not overwrite:
-            raise CalibrationError(
+            raise CalibrationFileError(
                 f"{path} exists and was not overwritten (nothing lost); pass overwrite=True to"
                 " replace it, or choose another path"
             )
         if not path.parent.is_dir():
-            raise CalibrationError(f"folder {path.parent} does not exist; create it first")
+            raise CalibrationFileError(f"folder {path.parent} does not exist; create it first")
         tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
         try:
             tmp.write_text(_dumps(self.to_dict()) + "\n")
@@ -482,23 +510,23 @@ class CalibrationFile:
         regenerate = f"regenerate it with `ipbench calibrate --out {path}`"
         if not path.is_file():
             what = "is a folder" if path.is_dir() else "does not exist"
-            raise CalibrationError(
+            raise CalibrationFileError(
                 f"calibration file {path} {what}; make one with `ipbench calibrate --out {path}`"
             )
         try:
             data = json.loads(path.read_text())
         except (UnicodeDecodeError, json.JSONDecodeError) as error:
-            raise CalibrationError(f"{path} is not JSON ({error}); {regenerate}") from None
+            raise CalibrationFileError(f"{path} is not JSON ({error}); {regenerate}") from None
         try:
             calibration = cls.from_dict(data)
-        except CalibrationError as error:
-            raise CalibrationError(f"{path}: {error}; {regenerate}") from None
+        except CalibrationFileError as error:
+            raise CalibrationFileError(f"{path}: {error}; {regenerate}") from None
         if expect_cameras is not None:
             expected = sorted({expect_cameras} if isinstance(expect_cameras, str)
                               else set(expect_cameras))  # fmt: skip
             have = list(calibration.camera_names)
             if set(expected) != set(have):
-                raise CalibrationError(
+                raise CalibrationFileError(
                     f"{path} calibrates cameras {have}, expected {expected} (missing:"
                     f" {sorted(set(expected) - set(have))}, not expected:"
                     f" {sorted(set(have) - set(expected))}); regenerate it for the expected"
