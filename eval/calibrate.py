@@ -116,6 +116,7 @@ BASE_BODY = "base"  # the robot base (motoman.xml), the frame of the robot's kin
 GRIPPER_SITE = f"{GRIPPER_ARM}_gripper_tcp"
 FLANGE_SITE = f"{CAMERA_ARM}_flange"
 OPTICAL_SITE = f"{CAMERA_ARM}_wrist_optical"
+_UP = np.array([0.0, 0.0, 1.0])  # the wrist board faces up
 HEAD_SIZE = (1024, 680)  # (width, height); the envs' head_size (680, 1024)
 WRIST_IMAGE_SIZE = (WRIST_SIZE[1], WRIST_SIZE[0])  # (width, height) 640 x 480
 # the left arm holds the board from its own side, the plate extending along -y from the TCP
@@ -420,19 +421,48 @@ def _capture_head(model, data, renderer, plate, board, config, rng, errors):
     return views, attempts
 
 
-def _capture_wrist(model, data, renderer, plate, board, config, rng, errors):
+def _wrist_setup(model, data, plate, config, error=None) -> ArmIK:
+    """The left arm holds the board face up at ``wrist_board_centre`` (``data`` is set to it);
+    returns the wrist camera's IK (joints S to B, free roll). Raises ``error`` (default
+    :class:`CalibrationRoutineError`) when the arm cannot reach it."""
     centre = np.asarray(config.wrist_board_centre, float)
-    normal = np.array([0.0, 0.0, 1.0])
     # held from the left arm's side: the texture's top (plate +z from the TCP) towards -y
-    q = _hold(_gripper_ik(model), data.qpos.copy(), plate, centre, normal, (0.0, -1.0, 0.0))
+    q = _hold(_gripper_ik(model), data.qpos.copy(), plate, centre, _UP, (0.0, -1.0, 0.0))
     if q is None:
-        raise CalibrationRoutineError(
+        raise (error or CalibrationRoutineError)(
             f"the left arm cannot hold the board at wrist_board_centre {config.wrist_board_centre}"
             "; choose a reachable point in front of the robot"
         )
     data.qpos[:] = q
-    ik = ArmIK(model, OPTICAL_SITE, arm_joint_names(CAMERA_ARM)[:5], free_roll=True)
+    return ArmIK(model, OPTICAL_SITE, arm_joint_names(CAMERA_ARM)[:5], free_roll=True)
+
+
+def _wrist_viewpoint(ik: ArmIK, q_hold: np.ndarray, config, rng) -> np.ndarray | None:
+    """Joint positions putting the wrist camera at a sampled viewpoint of the held board
+    (within ``wrist_tilt_deg`` of its normal, ``wrist_distance_m`` away, looking at it), or
+    None when the IK does not converge."""
+    centre = np.asarray(config.wrist_board_centre, float)
     near, far = config.wrist_distance_m
+    view = _turn(rng, _UP, config.wrist_tilt_deg)
+    eye = centre + rng.uniform(near, far) * view
+    look = centre + rng.uniform(-0.03, 0.03, 3) * np.array([1.0, 1.0, 0.0])
+    result = ik.solve(q_hold, eye, look_at_rotation(eye, look))
+    return result.q if result.converged else None
+
+
+def _wrist_look(ik, q_hold, config, rng, renderer, model, data, size, errors, board):
+    """Move the wrist camera to a sampled viewpoint (``data`` set, forward kinematics done)
+    and find the board in its image; the corners (N, 2) or None (no IK, or board not found)."""
+    q = _wrist_viewpoint(ik, q_hold, config, rng)
+    if q is None:
+        return None
+    data.qpos[:] = q
+    mujoco.mj_forward(model, data)
+    return find_corners(_render(renderer, model, data, "wrist", size, errors), board)
+
+
+def _capture_wrist(model, data, renderer, plate, board, config, rng, errors):
+    ik = _wrist_setup(model, data, plate, config)
     w, h = config.wrist_size
     flanges, corners, attempts = [], [], 0
     q_hold = data.qpos.copy()
@@ -440,15 +470,7 @@ def _capture_wrist(model, data, renderer, plate, board, config, rng, errors):
         if attempts >= config.poses_per_camera * config.max_attempts:
             break
         attempts += 1
-        view = _turn(rng, normal, config.wrist_tilt_deg)
-        eye = centre + rng.uniform(near, far) * view
-        look = centre + rng.uniform(-0.03, 0.03, 3) * np.array([1.0, 1.0, 0.0])
-        result = ik.solve(q_hold, eye, look_at_rotation(eye, look))
-        if not result.converged:
-            continue
-        data.qpos[:] = result.q
-        mujoco.mj_forward(model, data)
-        found = find_corners(_render(renderer, model, data, "wrist", (w, h), errors), board)
+        found = _wrist_look(ik, q_hold, config, rng, renderer, model, data, (w, h), errors, board)
         if found is None:
             continue
         flanges.append(invert(_base_pose(data)) @ _site_pose(data, FLANGE_SITE))

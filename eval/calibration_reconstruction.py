@@ -74,11 +74,10 @@ import mujoco
 import numpy as np
 
 from ipbench.assets.calibration_target import add_target_plate
-from ipbench.assets.compose import CAMERA_ARM, HEAD_SIDES, arm_joint_names, build_workcell_spec
+from ipbench.assets.compose import HEAD_SIDES, build_workcell_spec
 from ipbench.assets.objects import CATEGORIES, get_instance
 from ipbench.assets.objects.builder import add_object
 from ipbench.envs.depth_noise import STRUCTURED_LIGHT, DepthNoiseModel
-from ipbench.envs.ik import ArmIK, look_at_rotation
 from ipbench.envs.model_errors import ModelErrors, apply_model_errors, sample_model_errors
 from ipbench.envs.ptu import ptu_spec
 from ipbench.envs.sensors import SensorRenderer, camera_pose, intrinsics, specular_geoms
@@ -86,13 +85,14 @@ from ipbench.eval.calibrate import (
     _HEAD_HOLD_UP,
     CAMERAS,
     GRIPPER_SITE,
-    OPTICAL_SITE,
     CellCalibration,
     _base_pose,
     _gripper_ik,
     _hold,
     _render,
     _turn,
+    _wrist_look,
+    _wrist_setup,
 )
 from ipbench.perception.calibration.dynamic import right_from_chain, update_left_pose
 from ipbench.perception.calibration.errors import CalibrationError
@@ -417,37 +417,22 @@ def reconstruct_wrist(
     model, plate = _spec(board, config.px_per_square, errors)
     data = mujoco.MjData(model)
     mujoco.mj_forward(model, data)
-    centre = np.asarray(config.wrist_board_centre, float)
-    normal = np.array([0.0, 0.0, 1.0])
-    q = _hold(_gripper_ik(model), data.qpos.copy(), plate, centre, normal, (0.0, -1.0, 0.0))
-    if q is None:
-        raise ReconstructionError(
-            f"the left arm cannot hold the board at wrist_board_centre {config.wrist_board_centre}"
-        )
-    data.qpos[:] = q
+    ik = _wrist_setup(model, data, plate, config, ReconstructionError)
     q_hold = data.qpos.copy()
-    ik = ArmIK(model, OPTICAL_SITE, arm_joint_names(CAMERA_ARM)[:5], free_roll=True)
     calib = calibration.intrinsics["wrist"]
     w, h = calib.image_size
     noise = DepthNoiseModel(STRUCTURED_LIGHT)
     unit = noise.draw_unit(rng)
     shiny = specular_geoms(model)
     du, dv = errors.depth_registration_px
-    near, far = config.wrist_distance_m
     renderer = SensorRenderer(model)
     trials, missing, attempts = [], 0, 0
     try:
         while len(trials) < poses and attempts < poses * _MAX_ATTEMPTS:
             attempts += 1
-            view = _turn(rng, normal, config.wrist_tilt_deg)
-            eye = centre + rng.uniform(near, far) * view
-            look = centre + rng.uniform(-0.03, 0.03, 3) * np.array([1.0, 1.0, 0.0])
-            result = ik.solve(q_hold, eye, look_at_rotation(eye, look))
-            if not result.converged:
-                continue
-            data.qpos[:] = result.q
-            mujoco.mj_forward(model, data)
-            corners = find_corners(_render(renderer, model, data, "wrist", (w, h), errors), board)
+            corners = _wrist_look(
+                ik, q_hold, config, rng, renderer, model, data, (w, h), errors, board
+            )
             if corners is None:
                 continue
             _, depth = renderer.render_rgbd(data, CAMERAS["wrist"], w, h)
