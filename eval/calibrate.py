@@ -384,6 +384,20 @@ def _hold(ik: ArmIK, q0: np.ndarray, plate: TargetPlate, centre, normal, up):
     return result.q if result.converged else None
 
 
+def _head_presentation(rng, centre, head_mid, config):
+    """A sampled board pose for the head: (point (3,), face normal (3,), texture up (3,)),
+    the point in the box ``centre +- head_spread``, the face turned towards ``head_mid``
+    within ``head_tilt_deg`` and rolled within ``head_roll_deg``."""
+    point = centre + rng.uniform(-1.0, 1.0, 3) * np.asarray(config.head_spread)
+    towards = (head_mid - point) / np.linalg.norm(head_mid - point)
+    normal = _turn(rng, towards, config.head_tilt_deg)
+    roll = math.radians(rng.uniform(-config.head_roll_deg, config.head_roll_deg))
+    up = np.array(_HEAD_HOLD_UP) - np.dot(_HEAD_HOLD_UP, normal) * normal
+    up /= np.linalg.norm(up)
+    up = math.cos(roll) * up + math.sin(roll) * np.cross(normal, up)
+    return point, normal, up
+
+
 def _capture_head(model, data, renderer, plate, board, config, rng, errors):
     ik = _gripper_ik(model)
     centre = np.asarray(config.head_centre, float)
@@ -396,13 +410,7 @@ def _capture_head(model, data, renderer, plate, board, config, rng, errors):
         if attempts >= config.poses_per_camera * config.max_attempts:
             break
         attempts += 1
-        point = centre + rng.uniform(-1.0, 1.0, 3) * np.asarray(config.head_spread)
-        towards = (head_mid - point) / np.linalg.norm(head_mid - point)
-        normal = _turn(rng, towards, config.head_tilt_deg)
-        roll = math.radians(rng.uniform(-config.head_roll_deg, config.head_roll_deg))
-        up = np.array(_HEAD_HOLD_UP) - np.dot(_HEAD_HOLD_UP, normal) * normal
-        up /= np.linalg.norm(up)
-        up = math.cos(roll) * up + math.sin(roll) * np.cross(normal, up)
+        point, normal, up = _head_presentation(rng, centre, head_mid, config)
         q = _hold(ik, q_gaze, plate, point, normal, up)
         if q is None:
             continue

@@ -66,7 +66,6 @@ set for (``dynamic.py``).
 
 from __future__ import annotations
 
-import math
 import time
 
 import cv2
@@ -82,15 +81,14 @@ from ipbench.envs.model_errors import ModelErrors, apply_model_errors, sample_mo
 from ipbench.envs.ptu import ptu_spec
 from ipbench.envs.sensors import SensorRenderer, camera_pose, intrinsics, specular_geoms
 from ipbench.eval.calibrate import (
-    _HEAD_HOLD_UP,
     CAMERAS,
     GRIPPER_SITE,
     CellCalibration,
     _base_pose,
     _gripper_ik,
+    _head_presentation,
     _hold,
     _render,
-    _turn,
     _wrist_look,
     _wrist_setup,
 )
@@ -318,13 +316,7 @@ def reconstruct_head(
     try:
         while len(trials) < poses and attempts < poses * _MAX_ATTEMPTS:
             attempts += 1
-            point = centre + rng.uniform(-1.0, 1.0, 3) * np.asarray(config.head_spread)
-            towards = (head_mid - point) / np.linalg.norm(head_mid - point)
-            normal = _turn(rng, towards, config.head_tilt_deg)
-            roll = math.radians(rng.uniform(-config.head_roll_deg, config.head_roll_deg))
-            up = np.array(_HEAD_HOLD_UP) - np.dot(_HEAD_HOLD_UP, normal) * normal
-            up /= np.linalg.norm(up)
-            up = math.cos(roll) * up + math.sin(roll) * np.cross(normal, up)
+            point, normal, up = _head_presentation(rng, centre, head_mid, config)
             step = np.radians(
                 rng.uniform(-1.0, 1.0, 4) * np.tile([PAN_RANGE_DEG, TILT_RANGE_DEG], 2)
             )
