@@ -161,10 +161,8 @@ class ExplorationEnv(gym.Env):
         if options:
             raise ValueError(f"unknown reset option(s) {sorted(options)}; valid: none")
         self.scene = sample_scene(self.config.scene, int(self.np_random.integers(2**31)))
-        if self._knowledge is None:
-            self.model = m = build_model(self.scene)
-        else:  # the true cell
-            self.model = m = build_model(self.scene, self._errors)
+        errors = None if self._knowledge is None else self._errors  # the true cell's
+        self.model = m = build_model(self.scene, errors)
         if tuple(PtuSpec.from_model(m, f"head_{s}_") for s in HEAD_SIDES) != self.ptus:
             raise RuntimeError("the work cell's PTUs differ from assets/head/ptu_d46.xml")
         self.data = mujoco.MjData(m)
