@@ -19,6 +19,9 @@ shortest round-trip form, so a saved file loads bit-identical):
                      right tilt), rad, at which the head's eye-to-hand X and the stereo
                      transform were measured; absent in files that predate it (they load,
                      with ``head_gaze = None``) and written only when known
+    cell             optional: {"robot_seed": R or null}, the simulated cell the file was
+                     measured in (``ipbench calibrate --robot-seed R``; null: the nominal
+                     cell); absent when unknown (older files)
 
 Camera names are the observation's (``head_left``, ``head_right``, ``wrist``). Transforms are
 named as :mod:`~ipbench.perception.calibration.poses` (``a_to_b`` maps frame ``a``'s
@@ -88,7 +91,7 @@ _KEYS = {
                  "n_poses"),
     "stereo": ("left", "right", "left_to_right", "rms_px"),
 }  # fmt: skip
-_OPTIONAL = {"the file": ("head_gaze",)}  # keys a file may lack (older files)
+_OPTIONAL = {"the file": ("head_gaze", "cell")}  # keys a file may lack (older files)
 
 
 def _text(value, where: str, valid: tuple[str, ...] = ()) -> str:
@@ -345,6 +348,10 @@ class CalibrationFile:
         head cameras' eye-to-hand ``X`` (and the stereo transform) were measured; ``None`` when
         unknown (files that predate the key). Needed by ``extrinsics="calibrated"`` to carry a
         head camera's pose to another gaze (:mod:`ipbench.envs.extrinsics`).
+    cell : mapping or None
+        ``{"robot_seed": R}`` (int >= 0, or None for the nominal cell): the simulated cell the
+        file was measured in; ``None`` when unknown (files that predate the key). The envs
+        refuse a file measured in another cell than theirs.
     """
 
     cameras: tuple[CameraCalibration, ...]
@@ -355,6 +362,7 @@ class CalibrationFile:
     ipbench_version: str = field(default_factory=_ipbench_version)
     format_version: int = FORMAT_VERSION
     head_gaze: np.ndarray | None = None
+    cell: Mapping[str, int | None] | None = None
 
     def __post_init__(self) -> None:
         cameras = tuple(self.cameras)
@@ -395,6 +403,17 @@ class CalibrationFile:
             )
         if self.head_gaze is not None:
             object.__setattr__(self, "head_gaze", _array(self.head_gaze, "head_gaze (rad)", (4,)))
+        if self.cell is not None:
+            seed = self.cell.get("robot_seed", -1) if isinstance(self.cell, Mapping) else -1
+            ok = seed is None or (
+                isinstance(seed, int) and not isinstance(seed, bool) and seed >= 0
+            )
+            if not ok or set(self.cell) != {"robot_seed"}:
+                raise CalibrationFileError(
+                    f'cell is {self.cell!r}; valid: {{"robot_seed": R}} with R an int >= 0, or '
+                    "null for the nominal cell"
+                )
+            object.__setattr__(self, "cell", MappingProxyType({"robot_seed": seed}))
         object.__setattr__(self, "cameras", cameras)
         object.__setattr__(self, "hand_eye", MappingProxyType(dict(self.hand_eye)))
 
@@ -416,6 +435,7 @@ class CalibrationFile:
         """The file's JSON object (plain lists, numbers and strings)."""
         s = self.stereo
         gaze = {} if self.head_gaze is None else {"head_gaze": self.head_gaze.tolist()}
+        gaze |= {} if self.cell is None else {"cell": dict(self.cell)}
         return {
             "format": FORMAT, "format_version": self.format_version, "created": self.created,
             "ipbench_version": self.ipbench_version, "seed": self.seed,
@@ -468,7 +488,8 @@ class CalibrationFile:
         if stereo is not None:
             stereo = StereoEntry(**_keys(stereo, "stereo", "stereo"))
         return cls(tuple(cameras), hand_eye, stereo, data["seed"], data["created"],
-                   data["ipbench_version"], version, data.get("head_gaze"))  # fmt: skip
+                   data["ipbench_version"], version, data.get("head_gaze"),
+                   data.get("cell"))  # fmt: skip
 
     def save(self, path: str | os.PathLike, overwrite: bool = False) -> Path:
         """Write the file as JSON (module docstring) and return its path.

@@ -47,7 +47,14 @@ from ipbench.envs.exploration_scoring import GroundTruthObject, Scorer
 from ipbench.envs.extrinsics import DIST_SIZE, CameraKnowledge, check_extrinsics, distort_labels
 from ipbench.envs.lens_distortion import distort_image
 from ipbench.envs.model_errors import sample_model_errors
-from ipbench.envs.ptu import PtuError, PtuSpec, head_spec_arrays, ptu_spec, setpoint_step
+from ipbench.envs.ptu import (
+    PtuError,
+    PtuSpec,
+    head_spec_arrays,
+    play,
+    ptu_spec,
+    setpoint_step,
+)
 from ipbench.envs.sensors import SensorRenderer, camera_pose, intrinsics
 from ipbench.envs.sorting import InvalidActionError, ResetNeededError
 
@@ -146,6 +153,7 @@ class ExplorationEnv(gym.Env):
                 self.config.extrinsics,
                 tuple(f"head_{s}" for s in HEAD_SIDES),
                 self.config.calibration,
+                self.config.robot_seed,
             )
             self._errors = sample_model_errors(self.config.robot_seed)
             for s in HEAD_SIDES:
@@ -182,6 +190,14 @@ class ExplorationEnv(gym.Env):
             ]
         )
         self._setpoint = np.asarray(self.scene.home_gaze, float)
+        # PTU backlash (the true cell only): each axis' output follows its motor (the setpoint,
+        # which the encoder counts) through a dead band of width b (ModelErrors' PtuErrors),
+        # starting centred at home
+        self._output = self._setpoint.copy()
+        if self._knowledge is not None:
+            self._half_play = 0.5 * np.concatenate(
+                [self._errors.ptu(s).backlash for s in HEAD_SIDES]
+            )
         if self._renderer is not None:
             self._renderer.close()
         self._renderer = SensorRenderer(m)
@@ -284,11 +300,15 @@ class ExplorationEnv(gym.Env):
         start = d.time
         while d.time - start < cfg.max_saccade_time - 1e-9:
             self._setpoint = setpoint_step(self._setpoint, target, max_delta)
-            d.ctrl[self._act] = self._setpoint
+            if self._knowledge is None:
+                d.ctrl[self._act] = self._output = self._setpoint
+            else:
+                self._output = play(self._output, self._setpoint, self._half_play)
+                d.ctrl[self._act] = self._output
             mujoco.mj_step(m, d)
             if (
                 np.array_equal(self._setpoint, target)
-                and np.all(np.abs(d.qpos[self._qadr] - target) <= tol)
+                and np.all(np.abs(d.qpos[self._qadr] - self._output) <= tol)
                 and np.all(np.abs(d.qvel[self._dadr]) < cfg.settle_speed)
             ):
                 break
@@ -296,7 +316,10 @@ class ExplorationEnv(gym.Env):
         return float(d.time - start)
 
     def _encoder(self) -> np.ndarray:
+        """What the PTUs' encoders read: the joints (the motors: plus the backlash lag)."""
         q = self.data.qpos[self._qadr]
+        if self._knowledge is not None:
+            q = q + (self._setpoint - self._output)
         return np.concatenate([p.encoder(q[2 * k : 2 * k + 2]) for k, p in enumerate(self.ptus)])
 
     def _observation(self) -> dict:

@@ -8,9 +8,12 @@ poses ``*_pose`` and (not ``"true"``) distortion ``*_dist`` come from:
   and never build a :class:`CameraKnowledge`.
 * ``"nominal"``: the world is the TRUE one (the nominal model with
   :func:`~ipbench.envs.model_errors.sample_model_errors` of ``robot_seed`` applied, images
-  distorted by its lenses), and the robot believes its nominal model: ``K`` from the nominal
-  model (:func:`~ipbench.envs.sensors.intrinsics`), ``dist`` zeros (a pinhole), the pose by
-  forward kinematics of the NOMINAL model at the joint encoder readings.
+  distorted by its lenses, the PTUs' backlash acting on every head move (Exploration: the output
+  trails the motor, :func:`~ipbench.envs.ptu.play`; the encoders count the motor) and the wrist
+  depth image shifted by the Xtion's depth-to-RGB registration error (Sorting: in place of the
+  sensor preset's per-episode unit shift)), and the robot believes its nominal model: ``K`` from
+  the nominal model (:func:`~ipbench.envs.sensors.intrinsics`), ``dist`` zeros (a pinhole), the
+  pose by forward kinematics of the NOMINAL model at the joint encoder readings.
 * ``"calibrated"``: the same true world; ``K`` and ``dist`` from a calibration file
   (:class:`~ipbench.envs.calibration_file.CalibrationFile`, written by
   ``ipbench calibrate``), ``K`` scaled to the observed image size; the wrist pose is the nominal
@@ -182,9 +185,14 @@ class CameraKnowledge:
 
     @classmethod
     def build(
-        cls, mode: str, cameras: Sequence[str], calibration: str | os.PathLike | None = None
+        cls,
+        mode: str,
+        cameras: Sequence[str],
+        calibration: str | os.PathLike | None = None,
+        robot_seed: int | None = None,
     ) -> CameraKnowledge:
-        """Knowledge of ``cameras`` for ``mode`` (``calibration``: the file, ``calibrated``)."""
+        """Knowledge of ``cameras`` for ``mode`` (``calibration``: the file, ``calibrated``)
+        in the true cell of ``robot_seed`` (a file that records another cell is refused)."""
         check_extrinsics(mode, calibration)
         if mode == "true":
             raise ExtrinsicsError(
@@ -210,6 +218,14 @@ class CameraKnowledge:
                 anchors[c] = ("camera", model.camera(CAMERA_MODEL_NAMES[c]).id, np.eye(4))
         else:
             file = _load(calibration, cameras)
+            measured = None if file.cell is None else file.cell["robot_seed"]
+            if file.cell is not None and robot_seed is not None and measured != robot_seed:
+                where = "the nominal cell" if measured is None else f"robot_seed={measured}"
+                raise ExtrinsicsError(
+                    f"{calibration} was measured in {where}, but this env's true cell is "
+                    f"robot_seed={robot_seed}: calibrate that cell with `ipbench calibrate "
+                    f"--robot-seed {robot_seed} --out FILE`, or set robot_seed to the file's"
+                )
             for c in cameras:
                 X = file.hand_eye[c].X  # noqa: N806
                 if c == "wrist":

@@ -22,10 +22,10 @@ vector):
   it keeps ``qpos0``, keyframes, limits and position actuators in encoder units, as the PTU-D46
   keeps its limits and commands in positions (User's Manual v2.14.0 §4.3.4), so ``qpos`` stays
   what the encoder reads (before the 0.0514 deg quantisation of :mod:`ipbench.envs.ptu`).
-* Data for the env, not applied here: PTU backlash (dead band on a reversal, rad per axis), each
-  camera's true lens (:class:`LensDistortion`; the nominal model is a pinhole) and the wrist's
-  depth-to-RGB registration offset ``(du, dv)`` px at 640 x 480 (the reported depth at RGB pixel
-  ``(u, v)`` is the ideal registered depth at ``(u - du, v - dv)``).
+* Data for the envs, applied by them (not by the spec): PTU backlash (dead band on a reversal,
+  rad per axis), each camera's true lens (:class:`LensDistortion`; the nominal model is a
+  pinhole) and the wrist's depth-to-RGB registration offset ``(du, dv)`` px at 640 x 480 (the
+  reported depth at RGB pixel ``(u, v)`` is the ideal registered depth at ``(u - du, v - dv)``).
 
 :data:`ERROR_SCALES` gives every size with its source; :func:`sample_model_errors` draws a set.
 """

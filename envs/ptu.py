@@ -40,6 +40,7 @@ __all__ = [
     "STEP_ARCSEC",
     "STEP_RAD",
     "head_spec_arrays",
+    "play",
     "ptu_spec",
     "setpoint_step",
     "trajectory",
@@ -150,6 +151,18 @@ def setpoint_step(setpoint, target, max_delta) -> np.ndarray:
     if np.any(d <= 0):
         raise PtuError(f"max_delta must be positive (speed * dt), got {max_delta!r}")
     return np.where(np.abs(t - s) <= d, t, s + np.sign(t - s) * d)
+
+
+def play(output, motor, half_width) -> np.ndarray:
+    """A gear train's output after its motor moved to ``motor``, through backlash: the play
+    (hysteresis) operator. Each element of ``output`` stays where it is while the motor turns
+    inside the dead band ``[output - half_width, output + half_width]`` and is dragged along
+    at its edge otherwise, so a reversal costs ``2 * half_width`` of motor travel before the
+    output moves. All (k,) rad; ``half_width >= 0`` (half the backlash)."""
+    y, x, h = (np.asarray(v, float) for v in (output, motor, half_width))
+    if np.any(h < 0):
+        raise PtuError(f"half_width is half a dead band, >= 0 rad, got {half_width!r}")
+    return np.clip(y, x - h, x + h)
 
 
 def trajectory(start, target, speed, dt: float) -> np.ndarray:

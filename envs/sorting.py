@@ -52,7 +52,7 @@ fixes instead). Before v1 a grasp in clutter could launch the neighbours off the
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from functools import lru_cache
 
 import cv2
@@ -88,6 +88,7 @@ from ipbench.envs.sensors import (
     specular_geoms,
 )
 from ipbench.envs.skills import SkillConfig, SkillResult, Skills
+from ipbench.envs.structured_light import UnitError, apply_unit
 from ipbench.envs.world import (
     FAST_PHYSICS,
     PhysicsConfig,
@@ -340,7 +341,7 @@ class SortingEnv(gym.Env):
             names = [c for g in self.config.cameras for c in ((g,) if g == "wrist" else
                      tuple(f"head_{s}" for s in HEAD_SIDES))]  # fmt: skip
             self._knowledge = CameraKnowledge.build(
-                self.config.extrinsics, names, self.config.calibration
+                self.config.extrinsics, names, self.config.calibration, self.config.robot_seed
             )
             self._errors = sample_model_errors(self.config.robot_seed)
         hh, hw = self.config.head_size
@@ -422,6 +423,14 @@ class SortingEnv(gym.Env):
         # the sensor unit of this episode (its systematic error); its own stream, so that
         # the episode's other draws do not depend on whether the sensor has one
         self._unit = self._noise.draw_unit(np.random.default_rng([layout_seed, 7500]))
+        self._registration = (0, 0)  # the true cell's depth-to-RGB shift, px (dx, dy)
+        if self._knowledge is not None:
+            # the robot's one Xtion: its registration error is the robot's (robot_seed), not
+            # the sensor preset's per-episode unit draw, which it replaces
+            du, dv = self._errors.depth_registration_px
+            self._registration = (round(du), round(dv))
+            if self._unit is not None:
+                self._unit = replace(self._unit, shift_px=(0, 0))
         spec = build_workcell_spec(self.config.bin_depth)
         if self.config.finger_armature is not None:
             for finger in ("a", "b"):
@@ -709,6 +718,10 @@ class SortingEnv(gym.Env):
             depth = self._noise.apply(
                 depth, k_wrist.fx, k_wrist.fy, self.np_random, specular=specular, unit=self._unit
             )
+            if self._registration != (0, 0):  # the reported depth at RGB pixel (u, v) is the
+                # registered depth at (u - du, v - dv) (ModelErrors.depth_registration_px)
+                shift = UnitError(shift_px=self._registration)
+                depth = apply_unit(np.asarray(depth, np.float32), shift)
             obs["wrist_rgb"], obs["wrist_depth"] = rgb, depth.astype(np.float32)
         obs["qpos"] = d.qpos[self._robot_qadr].copy()
         if wrist:

@@ -580,7 +580,10 @@ def calibrate_capture(capture: CalibrationCapture) -> CellCalibration:
     cameras = tuple(CameraCalibration(n, i.K, i.dist, i.image_size, i.rms_px)
                     for n, i in intr.items())  # fmt: skip
     gaze = None if capture.head is None else capture.head.gaze  # where the head's X holds
-    file = CalibrationFile(cameras, entries, stereo_entry, capture.config.seed, head_gaze=gaze)
+    cell = {"robot_seed": capture.config.robot_seed}  # the simulated cell measured
+    file = CalibrationFile(
+        cameras, entries, stereo_entry, capture.config.seed, head_gaze=gaze, cell=cell
+    )
     return CellCalibration(file, intr, all_hand_eye, stereo, capture)
 
 

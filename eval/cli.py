@@ -203,6 +203,22 @@ def build_parser() -> argparse.ArgumentParser:
     sorting.add_argument(
         "--fusion", default="majority", help="view fusion, one of {FUSIONS} (thesis: majority)"
     )
+    sorting.add_argument(
+        "--extrinsics",
+        default="true",
+        help="what the robot knows of its cameras: true (the simulator's exact values, the "
+        "released envs), nominal (the true cell of --robot-seed, believed to be the nominal "
+        "model) or calibrated (that cell, believed to be --calibration FILE)",
+    )
+    sorting.add_argument(
+        "--calibration",
+        default=None,
+        help="calibration file for --extrinsics calibrated (ipbench calibrate --cameras wrist "
+        "--robot-seed R --out FILE)",
+    )
+    sorting.add_argument(
+        "--robot-seed", type=int, default=0, help="the true cell's error seed (not with true)"
+    )
     sorting.add_argument("--out", type=Path, default=Path("results/sorting"), help="report folder")
     sorting.add_argument(
         "--cache", type=Path, default=Path("results/cache"), help="model and view cache folder"
@@ -386,6 +402,9 @@ def main(argv: list[str] | None = None) -> int:
                 ray_address=args.ray_address,
                 video=args.video,
                 fusion=args.fusion,
+                extrinsics=args.extrinsics,
+                calibration=args.calibration,
+                robot_seed=args.robot_seed,
             )
             _writable(args.out, "--out")
             _writable(args.cache, "--cache")

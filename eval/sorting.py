@@ -34,6 +34,8 @@ from tqdm import tqdm
 
 import ipbench.envs  # noqa: F401  (registers the environments)
 from ipbench.assets.objects import CATEGORIES
+from ipbench.envs.calibration_file import CalibrationFile, CalibrationFileError
+from ipbench.envs.extrinsics import ExtrinsicsError, check_extrinsics
 from ipbench.envs.layout import SCENES, STANDARD_SCENES
 from ipbench.envs.sorting import workcell_places
 from ipbench.eval.episodes import BACKENDS, open_run, record_episodes, run_episodes
@@ -97,6 +99,11 @@ class SortingEvalConfig:
     backend : ``"process"`` or ``"ray"``; ``ray_address``: a cluster (None: a local instance).
     video : one MP4 per policy and scene (its first seed) with the semantic overlay.
     perception : the perception models' training configuration.
+    extrinsics, calibration, robot_seed : what the robot knows of its cameras
+        (:mod:`ipbench.envs.extrinsics`): ``"true"`` (default) runs the envs as released;
+        ``"nominal"`` / ``"calibrated"`` run every episode, validation episodes included, in
+        the true cell of ``robot_seed``, the robot believing its nominal model or the
+        ``calibration`` file (``ipbench calibrate --robot-seed R --cameras wrist``).
     """
 
     scenes: tuple[str, ...] = ("uncluttered", "cluttered")
@@ -112,8 +119,23 @@ class SortingEvalConfig:
     ray_address: str | None = None
     video: bool = False
     perception: PerceptionEvalConfig = field(default_factory=PerceptionEvalConfig)
+    extrinsics: str = "true"
+    calibration: str | None = None
+    robot_seed: int = 0
 
     def __post_init__(self) -> None:
+        try:
+            check_extrinsics(self.extrinsics, self.calibration, self.robot_seed)
+            if self.calibration is not None:
+                CalibrationFile.load(self.calibration)
+        except (ExtrinsicsError, CalibrationFileError) as err:
+            raise SortingEvalError(f"--extrinsics: {err}") from err
+        if self.extrinsics == "true" and self.robot_seed != 0:
+            raise SortingEvalError(
+                f"robot_seed={self.robot_seed} chooses the true cell of extrinsics 'nominal' or "
+                "'calibrated'; with 'true' (the released envs) there is none: drop --robot-seed "
+                "or add --extrinsics nominal|calibrated"
+            )
         for kind, names, valid in (
             ("scene", self.scenes, tuple(SCENES)),
             ("policy", self.policies, POLICIES),
@@ -158,14 +180,34 @@ class SortingEvalConfig:
         if self.steps_per_object < 1:
             raise SortingEvalError("steps_per_object must be >= 1")
 
+    def env_options(self) -> dict:
+        """The envs' keyword arguments for :attr:`extrinsics` (none for ``"true"``)."""
+        if self.extrinsics == "true":
+            return {}
+        return {
+            "extrinsics": self.extrinsics,
+            "calibration": self.calibration,
+            "robot_seed": int(self.robot_seed),
+        }
+
+    def cell_key(self) -> list:
+        """What the robot's cell adds to a fingerprint: nothing for ``"true"`` (the keys of runs
+        made before the option stay valid), else the mode, the robot seed and the calibration
+        file's content hash (not its path)."""
+        if self.extrinsics == "true":
+            return []
+        digest = None
+        if self.calibration is not None:
+            digest = hashlib.sha256(Path(self.calibration).read_bytes()).hexdigest()[:16]
+        return [self.extrinsics, int(self.robot_seed), digest]
+
     def fingerprint(self, models_key: str) -> str:
         """Hash of everything that changes an episode's result (not seeds, workers, video)."""
-        keep = {
-            k: v
-            for k, v in asdict(self).items()
-            if k
-            not in ("scenes", "policies", "seeds", "workers", "backend", "ray_address", "video")
-        }
+        skip = ("scenes", "policies", "seeds", "workers", "backend", "ray_address", "video")
+        skip += ("extrinsics", "calibration", "robot_seed")  # as cell_key()
+        keep = {k: v for k, v in asdict(self).items() if k not in skip}
+        if self.extrinsics != "true":
+            keep["cell"] = self.cell_key()
         text = json.dumps(
             [keep, models_key, EPISODE_VERSION, POLICY_VERSION], sort_keys=True, default=str
         )
@@ -270,6 +312,7 @@ def _validation_key(model, config: SortingEvalConfig) -> list:
         config.steps_per_object,
         _VALIDATION_PROTOCOL,
         POLICY_VERSION,
+        *config.cell_key(),  # validation runs in the evaluated cell (nothing added for "true")
     ]
 
 
@@ -440,6 +483,7 @@ def _run_episode(task: Task, models: PolicyModels, config: SortingEvalConfig) ->
         max_steps=config.steps_per_object * n_objects + 10,
         depth_noise=dataset.sensor,
         cameras=EVAL_CAMERAS,
+        **config.env_options(),
     )
     policy = make_policy(task.policy, models, config.n_views, config.fusion, env.unwrapped.commands)
     recorder = None

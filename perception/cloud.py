@@ -7,13 +7,18 @@ ground-truth mask, or for colour). Pixels without depth (0, NaN or inf) are drop
 Camera convention (as the environment's ``wrist_K`` / ``wrist_pose``): OpenCV, x right,
 y down, z forward; a pixel ``(u, v) = (col, row)`` has its centre at integer coordinates, so
 a camera-frame point is ``z * K^-1 (u, v, 1)``; ``pose`` is the 4x4 world-from-camera
-transform.
+transform. A camera with lens distortion (``dist``: OpenCV ``(k1, k2, p1, p2, k3)``, the
+observation's ``*_dist`` under ``extrinsics="nominal"|"calibrated"``) back-projects each pixel
+along its undistorted ray (``cv2.undistortPoints``), so the image itself is never resampled
+and every point keeps its pixel.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import lru_cache
 
+import cv2
 import numpy as np
 
 from ipbench.perception._cloud_kernels import box_members, voxel_assign
@@ -64,7 +69,23 @@ def _check_matrix(name: str, value, shape: tuple[int, int]) -> np.ndarray:
     return array
 
 
-def depth_to_points(depth: np.ndarray, K: np.ndarray, pose: np.ndarray) -> Cloud:
+@lru_cache(maxsize=4)
+def _ray_grid(key: bytes, height: int, width: int) -> np.ndarray:
+    """(H * W, 2) undistorted normalised coordinates ``(x/z, y/z)`` of every pixel centre of a
+    camera whose ``K`` (9) and ``dist`` (5) float64 values are packed in ``key``."""
+    values = np.frombuffer(key, dtype=np.float64)
+    K, dist = values[:9].reshape(3, 3), values[9:]  # noqa: N806
+    v, u = np.divmod(np.arange(height * width, dtype=np.float64), width)
+    pixels = np.column_stack([u, v]).reshape(-1, 1, 2)
+    criteria = (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 20, 1e-10)
+    rays = cv2.undistortPointsIter(pixels, K, dist, None, None, criteria).reshape(-1, 2)
+    rays.setflags(write=False)
+    return rays
+
+
+def depth_to_points(
+    depth: np.ndarray, K: np.ndarray, pose: np.ndarray, dist: np.ndarray | None = None
+) -> Cloud:
     """Back-project the valid pixels of a depth image to the world frame.
 
     Parameters
@@ -75,6 +96,9 @@ def depth_to_points(depth: np.ndarray, K: np.ndarray, pose: np.ndarray) -> Cloud
         Intrinsics ``[[fx, 0, cx], [0, fy, cy], [0, 0, 1]]``, px (skew is honoured).
     pose : (4, 4) array
         World-from-camera transform, OpenCV camera convention, m.
+    dist : (5,) array or None
+        The lens' OpenCV distortion ``(k1, k2, p1, p2, k3)`` (the depth image is as the lens
+        sees: distorted); None or all zeros: a pinhole, as before.
 
     Returns
     -------
@@ -95,15 +119,29 @@ def depth_to_points(depth: np.ndarray, K: np.ndarray, pose: np.ndarray) -> Cloud
     if not np.allclose(rotation.T @ rotation, np.eye(3), atol=1e-6) or abs(pose[3, 3] - 1) > 1e-9:
         raise PerceptionError("pose is not a rigid transform; valid: [[R, t], [0, 0, 0, 1]]")
 
+    if dist is not None:
+        dist = np.asarray(dist, dtype=np.float64)
+        if dist.shape != (5,) or not np.all(np.isfinite(dist)):
+            raise PerceptionError(
+                f"dist has shape {dist.shape}; valid: 5 finite OpenCV coefficients "
+                "(k1, k2, p1, p2, k3), or None for a pinhole"
+            )
+        if not np.any(dist):
+            dist = None
+
     height, width = depth.shape
     flat = depth.reshape(-1)
     with np.errstate(invalid="ignore"):
         pixels = np.flatnonzero(np.isfinite(flat) & (flat > 0))
     z = flat[pixels].astype(np.float64)
-    v, u = np.divmod(pixels, width)
-    fx, skew, cx, fy, cy = K[0, 0], K[0, 1], K[0, 2], K[1, 1], K[1, 2]
-    y_over_z = (v - cy) / fy
-    x_over_z = (u - cx - skew * y_over_z) / fx
+    if dist is None:
+        v, u = np.divmod(pixels, width)
+        fx, skew, cx, fy, cy = K[0, 0], K[0, 1], K[0, 2], K[1, 1], K[1, 2]
+        y_over_z = (v - cy) / fy
+        x_over_z = (u - cx - skew * y_over_z) / fx
+    else:
+        rays = _ray_grid(np.concatenate([K.reshape(-1), dist]).tobytes(), height, width)
+        x_over_z, y_over_z = rays[pixels, 0], rays[pixels, 1]
     camera = np.column_stack([x_over_z * z, y_over_z * z, z])
     points = camera @ rotation.T + pose[:3, 3]
     return Cloud(points, pixels.astype(np.int64), (height, width), pose[:3, 3].copy())

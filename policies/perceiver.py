@@ -112,8 +112,11 @@ class Perceiver:
         return self.model.classes
 
     def _cloud(self, observation: dict):
-        return depth_to_points(
-            observation["wrist_depth"], observation["wrist_K"], observation["wrist_pose"]
+        return depth_to_points(  # the lens (*_dist) is given when the robot knows one
+            observation["wrist_depth"],
+            observation["wrist_K"],
+            observation["wrist_pose"],
+            observation.get("wrist_dist"),
         )
 
     def _classify(

@@ -260,3 +260,22 @@ def test_the_files_vocabulary_is_the_routines():
 
     assert f.METHODS == h.HAND_EYE_METHODS + h.ROBOT_WORLD_METHODS
     assert f.SETUPS == h.SETUPS and f.MIN_POSES == h.MIN_POSES
+
+
+@pytest.mark.parametrize("seed", [4, None])
+def test_the_measured_cell_round_trips_and_older_files_lack_it(tmp_path, seed):
+    wrist = make().camera("wrist")
+    original = CalibrationFile((wrist,), cell={"robot_seed": seed})
+    path = original.save(tmp_path / "c.json")
+    assert json.loads(path.read_text())["cell"] == {"robot_seed": seed}
+    loaded = CalibrationFile.load(path)
+    assert dict(loaded.cell) == {"robot_seed": seed}
+    data = json.loads(path.read_text())
+    del data["cell"]
+    assert CalibrationFile.from_dict(data).cell is None  # unknown, still loads
+
+
+@pytest.mark.parametrize("cell", [{"robot_seed": -1}, {"robot_seed": 1.5}, {"seed": 1}, [1]])
+def test_a_bad_cell_is_refused_with_the_valid_form(cell):
+    with pytest.raises(CalibrationFileError, match=r"cell is .*valid: \{\"robot_seed\": R\}"):
+        CalibrationFile((make().camera("wrist"),), cell=cell)

@@ -82,6 +82,51 @@ def test_subset_and_crop_box():
         crop_box(cloud, (0, 0, 0), (0.1, -0.1, 0.1))
 
 
+DIST = np.array([0.12, -0.3, 0.004, -0.003, 0.05])  # stronger than any lens of the envs
+
+
+def test_distorted_pixels_back_project_along_their_true_rays():
+    """A distorted camera's depth pixels go back to the points that project onto them
+    (``cv2.projectPoints`` with the same lens), and a pinhole back-projection does not."""
+    import cv2
+
+    rng = np.random.default_rng(3)
+    pose = _looking_down(0.3, 0.7)
+    camera = np.column_stack(
+        [rng.uniform(-0.35, 0.35, 200), rng.uniform(-0.3, 0.3, 200), rng.uniform(0.6, 1.2, 200)]
+    )
+    uv = cv2.projectPoints(camera, np.zeros(3), np.zeros(3), K, DIST)[0].reshape(-1, 2)
+    # the pixel each point falls in (one point per pixel, inside the image)
+    col, row = np.rint(uv[:, 0]).astype(int), np.rint(uv[:, 1]).astype(int)
+    keep = (col >= 0) & (col < W) & (row >= 0) & (row < H)
+    camera, uv, col, row = camera[keep], uv[keep], col[keep], row[keep]
+    flat, first = np.unique(row * W + col, return_index=True)
+    camera, uv = camera[first], uv[first]
+    # move each point along its own ray so that it projects exactly onto the pixel centre
+    ideal = cv2.undistortPointsIter(
+        np.column_stack([col[first], row[first]]).astype(float).reshape(-1, 1, 2),
+        K,
+        DIST,
+        None,
+        None,
+        (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 50, 1e-12),
+    ).reshape(-1, 2)
+    exact = np.column_stack([ideal * camera[:, 2:], camera[:, 2]])
+    depth = np.zeros((H, W))
+    depth.reshape(-1)[flat] = exact[:, 2]
+    cloud = depth_to_points(depth, K, pose, DIST)
+    np.testing.assert_array_equal(cloud.pixels, flat)
+    world = exact @ pose[:3, :3].T + pose[:3, 3]
+    assert np.abs(cloud.points - world).max() < 1e-6
+    pinhole = depth_to_points(depth, K, pose)
+    assert np.abs(pinhole.points - world).max() > 1e-3  # the lens matters at these sizes
+    # zeros are a pinhole; a bad lens is refused with the valid form
+    zero = depth_to_points(depth, K, pose, np.zeros(5))
+    np.testing.assert_array_equal(zero.points, pinhole.points)
+    with pytest.raises(PerceptionError, match="5 finite OpenCV coefficients"):
+        depth_to_points(depth, K, pose, np.zeros(4))
+
+
 @pytest.mark.parametrize(
     "depth,k,pose,match",
     [

@@ -241,3 +241,64 @@ def test_check_env_passes(env_id, mode, calibration):
     env = gym.make(env_id, head_size=HEAD, extrinsics=mode, calibration=cal, **kw)
     check_env(env.unwrapped, skip_render_check=True)
     env.close()
+
+
+def test_the_true_xtion_depth_is_shifted_by_the_robots_registration_error():
+    """Under ``nominal``/``calibrated`` the wrist depth image is the registered depth moved by
+    the robot's ``depth_registration_px`` (rounded), uncovered pixels missing; the RGB image
+    does not move; ``true`` keeps no shift."""
+    from ipbench.envs.depth_noise import DepthNoiseConfig
+
+    seed = 0  # registration (2.50, -1.79) px: (3, -2) whole pixels
+    du, dv = sample_model_errors(seed).depth_registration_px
+    dx, dy = round(du), round(dv)
+    assert (dx, dy) == (3, -2)
+    env = gym.make(
+        "ipbench/Sorting-v2", head_size=HEAD, cameras=("wrist",), extrinsics="nominal",
+        robot_seed=seed, depth_noise=DepthNoiseConfig(enabled=False),
+    ).unwrapped  # fmt: skip
+    obs, _ = env.reset(seed=4)
+    assert env._registration == (dx, dy)
+    env._registration = (0, 0)  # the same view, unshifted
+    ideal = env._observation()
+    h, w = ideal["wrist_depth"].shape
+    got = obs["wrist_depth"]
+    np.testing.assert_array_equal(
+        got[max(dy, 0) : h + min(dy, 0), max(dx, 0) : w + min(dx, 0)],
+        ideal["wrist_depth"][max(-dy, 0) : h + min(-dy, 0), max(-dx, 0) : w + min(-dx, 0)],
+    )
+    assert not got[:, :dx].any() and not got[h + dy :, :].any()  # uncovered: missing
+    np.testing.assert_array_equal(obs["wrist_rgb"], ideal["wrist_rgb"])
+    default = gym.make("ipbench/Sorting-v2", head_size=HEAD, cameras=("wrist",)).unwrapped
+    default.reset(seed=4)
+    assert default._registration == (0, 0)
+
+
+def test_ptu_backlash_lags_the_true_joints_behind_the_encoders():
+    """In the true cell each PTU axis' output trails its motor (what the encoder counts) by
+    half the robot's backlash, on the side it came from: behind after a move up, ahead after
+    a reversal (within the settle tolerance)."""
+    seed = 0  # left pan backlash 0.00165 rad (1.8 steps)
+    env = ExplorationEnv(head_size=HEAD, extrinsics="nominal", robot_seed=seed)
+    obs, _ = env.reset(seed=1)
+    half = 0.5 * np.concatenate(
+        [sample_model_errors(seed).ptu(s).backlash for s in ("left", "right")]
+    )
+    tol = env.config.settle_tolerance * env.ptus[0].step
+    joints = env._qadr
+    assert np.abs(env.data.qpos[joints] - obs["head_qpos"]).max() <= tol  # centred at home
+    for direction in (1.0, -1.0):
+        gaze = obs["head_qpos"] + direction * np.array([0.1, 0.05, 0.1, 0.05])
+        obs, *_ = env.step({"gaze": gaze, "report": NO_REPORT})
+        lag = obs["head_qpos"] - env.data.qpos[joints]
+        assert np.all(np.abs(lag - direction * half) <= tol + 1e-9), (direction, lag, half)
+    assert half.max() > 1.5 * tol  # without the lag, that axis would fail the check above
+
+
+def test_a_calibration_of_another_cell_is_refused(calibration):
+    """The fixture's file records robot_seed=ROBOT_SEED: an env of another true cell refuses it
+    and says how to make the right one."""
+    assert dict(json.loads(open(calibration).read())["cell"]) == {"robot_seed": ROBOT_SEED}
+    with pytest.raises(ExtrinsicsError, match=r"measured in robot_seed=3.*--robot-seed 5"):
+        gym.make("ipbench/Sorting-v2", extrinsics="calibrated", calibration=calibration,
+                 robot_seed=5)  # fmt: skip

@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 
-from ipbench.envs.ptu import STEP_RAD, PtuError, ptu_spec, setpoint_step, trajectory
+from ipbench.envs.ptu import STEP_RAD, PtuError, play, ptu_spec, setpoint_step, trajectory
 
 
 def test_numbers_match_the_facts_sheet():
@@ -77,3 +77,18 @@ def test_trajectory_is_rate_limited_and_ends_on_the_quantised_target(dt):
 def test_setpoint_step_rejects_a_non_positive_speed():
     with pytest.raises(PtuError, match="positive"):
         setpoint_step([0.0], [1.0], [0.0])
+
+
+def test_play_is_a_dead_band_that_drags_the_output_at_its_edges():
+    h = np.array([0.5, 0.0])
+    y = np.zeros(2)
+    y = play(y, np.array([0.3, 0.3]), h)  # inside the band: the geared axis stays put
+    np.testing.assert_allclose(y, [0.0, 0.3])
+    y = play(y, np.array([2.0, 2.0]), h)  # dragged: trails the motor by h
+    np.testing.assert_allclose(y, [1.5, 2.0])
+    y = play(y, np.array([1.2, 1.2]), h)  # a reversal smaller than 2h: no output motion
+    np.testing.assert_allclose(y, [1.5, 1.2])
+    y = play(y, np.array([0.0, 0.0]), h)  # past the band: leads the motor by h
+    np.testing.assert_allclose(y, [0.5, 0.0])
+    with pytest.raises(PtuError, match=">= 0 rad"):
+        play(y, y, np.array([-0.1, 0.0]))

@@ -153,6 +153,10 @@ def test_evaluation_with_video_writes_a_decodable_mp4(tmp_path, prepared) -> Non
         ({"seeds": (5, 3, 5, 3, 4)}, r"seeds repeat: 3, 5 .*--seeds 5,3,4$"),
         ({"validation_seeds": (1000, 1001, 1000)}, r"validation_seeds repeat: 1000 "),
         ({"ray_address": "auto"}, "ray backend only.*add --backend ray, or drop --ray-address"),
+        ({"extrinsics": "exact"}, "unknown extrinsics 'exact'; valid: 'true', 'nominal'"),
+        ({"extrinsics": "calibrated"}, "needs calibration=FILE"),
+        ({"extrinsics": "calibrated", "calibration": "/no/such.json"}, "does not exist"),
+        ({"robot_seed": 2}, "drop --robot-seed or add --extrinsics nominal|calibrated"),
     ],
 )
 def test_bad_settings_say_what_is_valid(changes, message) -> None:
@@ -259,3 +263,64 @@ def test_runs_and_thresholds_of_other_policy_code_are_never_reused(monkeypatch):
     monkeypatch.setattr(sorting, "POLICY_VERSION", sorting.POLICY_VERSION + 1)
     assert config.fingerprint("k") != run
     assert sorting._validation_key(model, config) != evidence
+
+
+@pytest.fixture(scope="module")
+def wrist_calibration(tmp_path_factory) -> Path:
+    """``ipbench calibrate --cameras wrist --robot-seed 3``'s routine, 8 poses (a few s)."""
+    from ipbench.eval.calibrate import CalibrationCaptureConfig, calibrate_cell
+
+    config = CalibrationCaptureConfig(cameras=("wrist",), poses_per_camera=8, robot_seed=3)
+    return calibrate_cell(config).save(tmp_path_factory.mktemp("cal") / "wrist.json")
+
+
+def test_the_cell_enters_the_fingerprint_by_content_and_true_adds_nothing(
+    wrist_calibration, tmp_path
+) -> None:
+    assert FAST.env_options() == {} and FAST.cell_key() == []
+    nominal = replace(FAST, extrinsics="nominal", robot_seed=3)
+    assert nominal.env_options() == {"extrinsics": "nominal", "calibration": None, "robot_seed": 3}
+    prints = {FAST.fingerprint("k"), nominal.fingerprint("k")}
+    prints.add(replace(nominal, robot_seed=4).fingerprint("k"))
+    cal = replace(nominal, extrinsics="calibrated", calibration=str(wrist_calibration))
+    prints.add(cal.fingerprint("k"))
+    assert len(prints) == 4
+    copy = tmp_path / "same.json"  # the same calibration at another path: the same run
+    copy.write_bytes(wrist_calibration.read_bytes())
+    assert replace(cal, calibration=str(copy)).fingerprint("k") == cal.fingerprint("k")
+    assert sorting._validation_key(sorting._Keyed("m"), cal)[-3:] == cal.cell_key()
+
+
+def test_an_episode_runs_in_the_calibrated_cell(models, wrist_calibration, monkeypatch) -> None:
+    """The env gets the cell's options and the perceiver the calibrated lens (``wrist_dist``)."""
+    import gymnasium as gym
+
+    made, seen = [], []
+    make = gym.make
+
+    def spy(env_id, **kw):
+        made.append(kw)
+        return make(env_id, **kw)
+
+    monkeypatch.setattr(sorting.gym, "make", spy)
+    original = sorting.make_policy
+
+    def policy(*args, **kw):
+        p = original(*args, **kw)
+        act = p.act
+
+        def watched(obs, info=None):
+            seen.append(obs.get("wrist_dist"))
+            return act(obs, info)
+
+        p.act = watched
+        return p
+
+    monkeypatch.setattr(sorting, "make_policy", policy)
+    config = replace(
+        FAST, extrinsics="calibrated", calibration=str(wrist_calibration), robot_seed=3
+    )
+    record = sorting.run_episode(Task("uncluttered", "oracle", 1), models, config)
+    assert made[0]["extrinsics"] == "calibrated" and made[0]["robot_seed"] == 3
+    assert record["steps"] >= 1 and record["skills"].get("pick", 0) >= 1
+    assert seen and all(d is not None and np.any(d) for d in seen)
