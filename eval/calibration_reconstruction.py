@@ -43,13 +43,9 @@ box, the face turned towards the head within ``head_tilt_deg`` and rolled within
   ``s = sign(g - g0)`` and ``s0 = sign(g0)``: no error when the move keeps the direction, ``b``
   when it reverses. The PTU zero offsets act through the true model itself.
 
-- **wrist** (:func:`reconstruct_wrist`): the board is held face up at the capture's
-  ``wrist_board_centre`` and the Xtion views it from random viewpoints (the wrist capture's
-  sampling); the depth is the Sorting-v2 sensor's (:data:`~ipbench.envs.depth_noise.
-  STRUCTURED_LIGHT` via :meth:`~ipbench.envs.depth_noise.DepthNoiseModel.apply`, as
-  ``SortingEnv._observation`` calls it, with one unit error per run and the true cell's
-  depth-to-RGB registration offset). Each corner (undistorted with the calibrated lens) takes
-  the depth at its nearest pixel and is back-projected with the calibrated ``K``.
+- **wrist** (:func:`~ipbench.eval.wrist_reconstruction.reconstruct_wrist`, its own module,
+  re-exported here): the Xtion's corners from its noisy depth, as board shape and in the robot
+  base frame through the robot's calibrated (and nominal) chain.
 
 Per trial: distances between horizontally and vertically adjacent corners against 24 mm,
 and the residuals of the reconstruction against the Kabsch (rigid) fit of the board model,
@@ -58,10 +54,11 @@ Aggregates: RMSE of the distance errors and mean |residual| per axis, over all t
 
 Thesis figures (seed thesis ch. 4; facts sheet sensor_and_calibration_facts.md §1-2): head
 RMSE 0.16 mm (Table 4.3), per-axis residuals < 0.3 mm (Table 4.2), Xtion 12.5 mm (Table 4.4),
-Kinect v2 11.6 mm (Table 4.5). Ranges chosen from geometry before any result: pan +-8 deg and
-tilt +-5 deg keep most of the before view in sight (head FOV about 37 x 25 deg at 1024 x 680,
-f = 1519 px) and stay within the 13 px parallax the dynamic update's homography filter was
-set for (``dynamic.py``).
+Kinect v2 11.6 mm (Table 4.5); the Xtion's 12.5 mm is in the robot frame ("reconstructing a
+checkerboard in the Baxter chain", facts sheet §1). Ranges chosen from geometry before any
+result: pan +-8 deg and tilt +-5 deg keep most of the before view in sight (head FOV about
+37 x 25 deg at 1024 x 680, f = 1519 px) and stay within the 13 px parallax the dynamic
+update's homography filter was set for (``dynamic.py``).
 """
 
 from __future__ import annotations
@@ -76,10 +73,9 @@ from ipbench.assets.calibration_target import add_target_plate
 from ipbench.assets.compose import HEAD_SIDES, build_workcell_spec
 from ipbench.assets.objects import CATEGORIES, get_instance
 from ipbench.assets.objects.builder import add_object
-from ipbench.envs.depth_noise import STRUCTURED_LIGHT, DepthNoiseModel
 from ipbench.envs.model_errors import ModelErrors, apply_model_errors, sample_model_errors
 from ipbench.envs.ptu import ptu_spec
-from ipbench.envs.sensors import SensorRenderer, camera_pose, intrinsics, specular_geoms
+from ipbench.envs.sensors import SensorRenderer, camera_pose, intrinsics
 from ipbench.eval.calibrate import (
     CAMERAS,
     GRIPPER_SITE,
@@ -89,8 +85,6 @@ from ipbench.eval.calibrate import (
     _head_presentation,
     _hold,
     _render,
-    _wrist_look,
-    _wrist_setup,
 )
 from ipbench.perception.calibration.dynamic import right_from_chain, update_left_pose
 from ipbench.perception.calibration.errors import CalibrationError
@@ -107,8 +101,6 @@ __all__ = [
     "ReconstructionError",
     "board_errors",
     "reconstruct_head",
-    "reconstruct_wrist",
-    "reconstruction_metrics",
 ]
 
 PAN_RANGE_DEG = 8.0
@@ -388,135 +380,4 @@ def reconstruct_head(
         "products": [p[:2] for p in products],
         "per_trial": [{"gaze_rad": t["gaze_rad"]} for t in trials],
         "seconds": time.perf_counter() - start,
-    }
-
-
-def reconstruct_wrist(
-    calibration: CellCalibration, robot_seed: int | None, seed: int, poses: int = 10
-) -> dict:
-    """Wrist Xtion reconstruction of the board from its noisy depth (module docstring).
-
-    Returns ``{"rmse_mm", "mean_abs_distance_error_mm", "axis_mean_abs_residual_mm",
-    "per_trial_rmse_mm", "trials", "missing_corners", "seconds"}``; a view is kept when the
-    board is found in the RGB image and at least half of its corners have depth.
-    """
-    _check(calibration, "wrist", poses, seed)
-    start = time.perf_counter()
-    capture = calibration.capture
-    config, board = capture.config, capture.board
-    errors = _errors(robot_seed)
-    rng = np.random.default_rng([seed, 14, 7])
-    model, plate = _spec(board, config.px_per_square, errors)
-    data = mujoco.MjData(model)
-    mujoco.mj_forward(model, data)
-    ik = _wrist_setup(model, data, plate, config, ReconstructionError)
-    q_hold = data.qpos.copy()
-    calib = calibration.intrinsics["wrist"]
-    w, h = calib.image_size
-    noise = DepthNoiseModel(STRUCTURED_LIGHT)
-    unit = noise.draw_unit(rng)
-    shiny = specular_geoms(model)
-    du, dv = errors.depth_registration_px
-    renderer = SensorRenderer(model)
-    trials, missing, attempts = [], 0, 0
-    try:
-        while len(trials) < poses and attempts < poses * _MAX_ATTEMPTS:
-            attempts += 1
-            corners = _wrist_look(
-                ik, q_hold, config, rng, renderer, model, data, (w, h), errors, board
-            )
-            if corners is None:
-                continue
-            _, depth = renderer.render_rgbd(data, CAMERAS["wrist"], w, h)
-            k_true = intrinsics(model, CAMERAS["wrist"], w, h)
-            seg = renderer.render_segmentation(data, CAMERAS["wrist"], w, h)
-            specular = shiny[seg] if noise.uses_specular else None
-            depth = noise.apply(depth, k_true.fx, k_true.fy, rng, specular=specular, unit=unit)
-            ideal = cv2.undistortPoints(corners.reshape(-1, 1, 2), calib.K, calib.dist, P=calib.K)
-            ideal = ideal.reshape(-1, 2)
-            u = np.clip(np.rint(ideal[:, 0] - du).astype(int), 0, w - 1)
-            v = np.clip(np.rint(ideal[:, 1] - dv).astype(int), 0, h - 1)
-            z = depth[v, u].astype(float)
-            ok = z > 0
-            if ok.sum() < len(z) / 2:
-                continue
-            missing += int((~ok).sum())
-            rays = np.column_stack([ideal, np.ones(len(ideal))]) @ np.linalg.inv(calib.K).T
-            pts = rays * z[:, None]
-            errs = board_errors(np.where(ok[:, None], pts, 0.0), board, np.eye(3))
-            grid = ok.reshape(board.rows, board.cols)
-            pair_ok = np.concatenate([(grid[:, 1:] & grid[:, :-1]).ravel(),
-                                      (grid[1:] & grid[:-1]).ravel()])  # fmt: skip
-            if not ok.all():  # refit on the corners with depth
-                errs = _partial_errors(pts, ok, board, pair_ok, errs)
-            trials.append(errs)
-    finally:
-        renderer.close()
-    if not trials:
-        raise ReconstructionError(
-            f"no wrist view of the board with depth in {attempts} sampled viewpoints"
-        )
-    out = _summary(trials)
-    out.update(trials=len(trials), attempts=attempts, missing_corners=missing,
-               seconds=time.perf_counter() - start)  # fmt: skip
-    return out
-
-
-def _partial_errors(pts, ok, board: Checkerboard, pair_ok, errs) -> dict:
-    """``board_errors`` restricted to corners with depth (distances of pairs with both)."""
-    model = np.asarray(board.object_points(), float).reshape(-1, 3)[ok]
-    p = pts[ok]
-    pm, mm = p.mean(0), model.mean(0)
-    u, _, vt = np.linalg.svd((model - mm).T @ (p - pm))
-    d = np.sign(np.linalg.det(vt.T @ u.T))
-    R = vt.T @ np.diag([1.0, 1.0, d]) @ u.T
-    return {
-        "distance_errors_mm": errs["distance_errors_mm"][pair_ok],
-        "residuals_mm": 1000.0 * (p - ((model - mm) @ R.T + pm)),
-    }
-
-
-def reconstruction_metrics(
-    calibration: CellCalibration, robot_seed: int | None, seed: int = 0, poses: int = 10
-) -> dict:
-    """``{"head_dynamic_rmse_mm", "head_encoders_rmse_mm", "wrist_rmse_mm", "tables", ...}``: the
-    metrics.json ``reconstruction`` block, with our figures beside the thesis' in ``tables``.
-    A camera group the calibration lacks gives None."""
-    head = reconstruct_head(calibration, robot_seed, seed, poses) if (
-        "head_left" in calibration.intrinsics) else None  # fmt: skip
-    wrist = reconstruct_wrist(calibration, robot_seed, seed, poses) if (
-        "wrist" in calibration.intrinsics) else None  # fmt: skip
-
-    def rmse(method):
-        return None if head is None or method not in head["methods"] else (
-            head["methods"][method]["rmse_mm"])  # fmt: skip
-
-    tables = {
-        "table_4_2_head_axis_residual_mm": {
-            "ours": None
-            if head is None
-            else {m: s["axis_mean_abs_residual_mm"] for m, s in head["methods"].items()},
-            "thesis_max": THESIS["head_axis_residual_max_mm"],
-        },  # fmt: skip
-        "table_4_3_head_rmse_mm": {
-            "ours": None if head is None else {m: s["rmse_mm"] for m, s in head["methods"].items()},
-            "thesis": THESIS["head_rmse_mm"],
-        },
-        "table_4_4_xtion_rmse_mm": {
-            "ours": None if wrist is None else wrist["rmse_mm"],
-            "thesis": THESIS["xtion_rmse_mm"],
-        },
-        "table_4_5_kinect_v2_rmse_mm": {"ours": None, "thesis": THESIS["kinect_v2_rmse_mm"]},
-    }
-    return {
-        # the dynamic update of each camera: updating the left one and chaining the right one
-        # through the encoders keeps the encoders' relative pose, so corner distances are the
-        # encoders' ("dynamic", reported beside)
-        "head_dynamic_rmse_mm": rmse("dynamic_both"),
-        "head_dynamic_left_chain_rmse_mm": rmse("dynamic"),
-        "head_encoders_rmse_mm": rmse("encoders"),
-        "wrist_rmse_mm": None if wrist is None else wrist["rmse_mm"],
-        "tables": tables,
-        "head": head,
-        "wrist": wrist,
     }

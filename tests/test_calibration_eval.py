@@ -26,11 +26,15 @@ def test_metrics_have_the_issues_keys_and_calibration_beats_the_nominal_model(tm
         assert c["calibrated"]["translation_mm"] < c["nominal"]["translation_mm"]
         assert c["calibrated"]["rotation_deg"] < c["nominal"]["rotation_deg"]
     rec = on_disk["reconstruction"]
-    for key in ("head_dynamic_rmse_mm", "head_encoders_rmse_mm", "wrist_rmse_mm"):
+    for key in ("head_dynamic_rmse_mm", "head_encoders_rmse_mm", "wrist_rmse_mm",
+                "wrist_robot_rmse_mm", "wrist_robot_nominal_rmse_mm"):  # fmt: skip
         assert rec[key] is not None and rec[key] > 0
     report = (tmp_path / "calibration.md").read_text()
     assert "| wrist | tsai |" in report and "nominal model's X error" in report
     assert "| head, encoders |" in report and "wrist Xtion depth" in report
+    assert "## Xtion in the robot frame (thesis Table 4.4)" in report
+    assert "| calibrated X | " in report and "| nominal X (no calibration) |" in report
+    assert f"{rec['wrist_robot_rmse_mm']:.2f} | 12.5 (Table 4.4) |" in report
 
 
 def test_eval_calibration_rejects_a_negative_seed(tmp_path):

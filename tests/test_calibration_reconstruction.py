@@ -8,15 +8,15 @@ import numpy as np
 import pytest
 
 from ipbench.eval.calibrate import CalibrationCaptureConfig, calibrate_capture, capture_views
+from ipbench.eval.calibration_eval import reconstruction_metrics
 from ipbench.eval.calibration_reconstruction import (
     HEAD_METHODS,
     THESIS,
     ReconstructionError,
     board_errors,
     reconstruct_head,
-    reconstruct_wrist,
-    reconstruction_metrics,
 )
+from ipbench.eval.wrist_reconstruction import reconstruct_wrist
 from ipbench.perception.calibration.target import Checkerboard
 
 ROBOT_SEED = 3
@@ -54,13 +54,21 @@ def test_board_errors_of_the_exact_board_are_zero_and_see_a_scale_error():
 
 def test_metrics_structure_and_thesis_figures(with_errors):
     _, metrics = with_errors
-    for key in ("head_dynamic_rmse_mm", "head_encoders_rmse_mm", "wrist_rmse_mm"):
+    for key in ("head_dynamic_rmse_mm", "head_encoders_rmse_mm", "wrist_rmse_mm",
+                "wrist_robot_rmse_mm", "wrist_robot_nominal_rmse_mm"):  # fmt: skip
         assert math.isfinite(metrics[key]) and metrics[key] > 0
     tables = metrics["tables"]
     assert tables["table_4_3_head_rmse_mm"]["thesis"] == THESIS["head_rmse_mm"] == 0.16
     assert tables["table_4_2_head_axis_residual_mm"]["thesis_max"] == 0.3
     assert tables["table_4_4_xtion_rmse_mm"]["thesis"] == 12.5
     assert tables["table_4_5_kinect_v2_rmse_mm"]["thesis"] == 11.6
+    robot = tables["table_4_4_xtion_robot_frame_rmse_mm"]
+    assert robot["thesis"] == 12.5
+    assert robot["ours"] == {
+        "calibrated": metrics["wrist_robot_rmse_mm"],
+        "nominal": metrics["wrist_robot_nominal_rmse_mm"],
+    }
+    assert metrics["wrist"]["robot_frame"]["calibrated"]["rmse_mm"] == robot["ours"]["calibrated"]
     head = metrics["head"]
     assert head["trials"] == 3 and set(head["methods"]) == set(HEAD_METHODS)
     for summary in head["methods"].values():
