@@ -58,17 +58,40 @@ def projection_matrix(K: np.ndarray, pose: np.ndarray) -> np.ndarray:
 @dataclass(frozen=True, eq=False)
 class StereoRig:
     """The two cameras of the head at one moment: intrinsics (3, 3) px and world-from-camera
-    poses (4, 4) m (OpenCV convention, module docstring)."""
+    poses (4, 4) m (OpenCV convention, module docstring), and optionally each lens' OpenCV
+    distortion ``dist_*`` (5,) ``(k1, k2, p1, p2, k3)`` (the observation's ``head_*_dist``):
+    pixels given to the rig are then as the lens sees them, and are undistorted to the ideal
+    pinhole's (:meth:`ideal`) before any geometry. None (or zeros): pinhole cameras."""
 
     K_left: np.ndarray
     pose_left: np.ndarray
     K_right: np.ndarray
     pose_right: np.ndarray
+    dist_left: np.ndarray | None = None
+    dist_right: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         for name, shape in (("K_left", (3, 3)), ("pose_left", (4, 4)),
                             ("K_right", (3, 3)), ("pose_right", (4, 4))):  # fmt: skip
             object.__setattr__(self, name, _matrix(name, getattr(self, name), shape))
+        for name in ("dist_left", "dist_right"):
+            dist = getattr(self, name)
+            if dist is not None:
+                dist = _matrix(name, np.reshape(dist, (1, -1)), (1, 5))[0]
+                object.__setattr__(self, name, dist if np.any(dist) else None)
+
+    def ideal(self, xy: np.ndarray, side: str) -> np.ndarray:
+        """(N, 2) pixels of camera ``side`` ("left" or "right") as its ideal pinhole would see
+        them (``cv2.undistortPointsIter`` with ``P = K``); unchanged without a lens."""
+        if side not in ("left", "right"):
+            raise ActiveVisionError(f"side {side!r}; valid: 'left', 'right'")
+        xy, dist = _points(xy), getattr(self, f"dist_{side}")
+        if dist is None or len(xy) == 0:
+            return xy
+        K = getattr(self, f"K_{side}")  # noqa: N806
+        criteria = (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 20, 1e-10)
+        out = cv2.undistortPointsIter(xy.reshape(-1, 1, 2), K, dist, None, K, criteria)
+        return out.reshape(-1, 2)
 
     @property
     def baseline(self) -> float:
@@ -84,7 +107,7 @@ class StereoRig:
 
     def epipolar_distance(self, xy_left: np.ndarray, xy_right: np.ndarray) -> np.ndarray:
         """(N,) px: distance of each right point to its left point's epipolar line."""
-        xl, xr = _points(xy_left), _points(xy_right)
+        xl, xr = self.ideal(xy_left, "left"), self.ideal(xy_right, "right")
         if len(xl) != len(xr):
             raise ActiveVisionError(f"{len(xl)} left and {len(xr)} right points; valid: equal")
         lines = np.hstack([xl, np.ones((len(xl), 1))]) @ self.fundamental().T
@@ -93,7 +116,7 @@ class StereoRig:
 
     def triangulate(self, xy_left: np.ndarray, xy_right: np.ndarray) -> np.ndarray:
         """(N, 3) world points of matched pixels (``cv2.triangulatePoints``, linear DLT), m."""
-        xl, xr = _points(xy_left), _points(xy_right)
+        xl, xr = self.ideal(xy_left, "left"), self.ideal(xy_right, "right")
         if len(xl) != len(xr):
             raise ActiveVisionError(f"{len(xl)} left and {len(xr)} right points; valid: equal")
         if len(xl) == 0:

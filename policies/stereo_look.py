@@ -72,8 +72,13 @@ def look(
     left = detect(obs["head_left"], kind, max_features=max_features)
     right = detect(obs["head_right"], kind, max_features=max_features)
     rec_l, rec_r = recognise(left, database, config), recognise(right, database, config)
-    rig = StereoRig(
-        obs["head_left_K"], obs["head_left_pose"], obs["head_right_K"], obs["head_right_pose"]
+    rig = StereoRig(  # the lenses, when the robot knows them (extrinsics="calibrated")
+        obs["head_left_K"],
+        obs["head_left_pose"],
+        obs["head_right_K"],
+        obs["head_right_pose"],
+        obs.get("head_left_dist"),
+        obs.get("head_right_dist"),
     )
     candidates = []
     for i, j in match_hypotheses(rec_l.hypotheses, rec_r.hypotheses, rig):
