@@ -194,6 +194,13 @@ class ModelErrors:
         px = _vector(self.depth_registration_px, 2, "depth_registration_px (du, dv)")
         object.__setattr__(self, "depth_registration_px", px)
 
+    @property
+    def registration_shift_px(self) -> tuple[int, int]:
+        """:attr:`depth_registration_px` in whole pixels ``(dx, dy)``: how the true Xtion's
+        depth image moves against its RGB image (the envs' and the reconstruction's shift)."""
+        du, dv = self.depth_registration_px
+        return round(du), round(dv)
+
     @classmethod
     def none(cls) -> ModelErrors:
         """No errors: the true model is the nominal one."""

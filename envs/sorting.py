@@ -427,8 +427,7 @@ class SortingEnv(gym.Env):
         if self._knowledge is not None:
             # the robot's one Xtion: its registration error is the robot's (robot_seed), not
             # the sensor preset's per-episode unit draw, which it replaces
-            du, dv = self._errors.depth_registration_px
-            self._registration = (round(du), round(dv))
+            self._registration = self._errors.registration_shift_px
             if self._unit is not None:
                 self._unit = replace(self._unit, shift_px=(0, 0))
         spec = build_workcell_spec(self.config.bin_depth)

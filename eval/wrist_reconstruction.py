@@ -6,11 +6,12 @@ of ``robot_seed`` (:func:`~ipbench.envs.model_errors.sample_model_errors`) and t
 moves the Xtion to random viewpoints (the sampling of :mod:`ipbench.eval.calibrate`'s wrist
 capture). The depth is the Sorting-v2 sensor's (:data:`~ipbench.envs.depth_noise.
 STRUCTURED_LIGHT` via :meth:`~ipbench.envs.depth_noise.DepthNoiseModel.apply`, as
-``SortingEnv._observation`` calls it, with one unit error per run and the true cell's
-depth-to-RGB registration offset). Each corner found in the RGB image (undistorted with the
-calibrated lens) takes the depth at its nearest pixel and is back-projected with the calibrated
-``K``: a point in the camera frame. A view is kept when the board is found and at least half
-of its corners have depth; corners without depth are left out. Two measurements per view:
+``SortingEnv._observation`` calls it, with one unit error per run whose depth-to-RGB shift is
+the true cell's registration offset, as in the envs). Each corner found in the RGB image
+(undistorted with the calibrated lens) takes the depth at its nearest pixel and is
+back-projected with the calibrated ``K``: a point in the camera frame. A view is kept when the
+board is found and at least half of its corners have depth; corners without depth are left out.
+Two measurements per view:
 
 - **board shape** (as the head's, :func:`~ipbench.eval.calibration_reconstruction.board_errors`):
   distances between adjacent corners against 24 mm and the residuals of a rigid fit of the
@@ -159,8 +160,10 @@ def reconstruct_wrist(
     w, h = calib.image_size
     noise = None if depth_noise is None else DepthNoiseModel(depth_noise)
     unit = None if noise is None else noise.draw_unit(rng)
+    if unit is not None:  # as the envs: the robot's registration replaces the unit's shift
+        unit = dataclasses.replace(unit, shift_px=(0, 0))
     shiny = specular_geoms(model)
-    du, dv = errors.depth_registration_px
+    du, dv = errors.registration_shift_px
     beliefs = _beliefs(calibration.file)
     base_belief = {c: invert(_nominal_base(k)) for c, k in beliefs.items()}
     readings = {c: model.jnt_qposadr[[model.joint(j).id for j in k.joint_names]]
@@ -184,8 +187,8 @@ def reconstruct_wrist(
                 depth = noise.apply(depth, k_true.fx, k_true.fy, rng, specular=specular, unit=unit)
             ideal = cv2.undistortPoints(corners.reshape(-1, 1, 2), calib.K, calib.dist, P=calib.K)
             ideal = ideal.reshape(-1, 2)
-            u = np.clip(np.rint(ideal[:, 0] - du).astype(int), 0, w - 1)
-            v = np.clip(np.rint(ideal[:, 1] - dv).astype(int), 0, h - 1)
+            u = np.clip(np.rint(ideal[:, 0]).astype(int) - du, 0, w - 1)
+            v = np.clip(np.rint(ideal[:, 1]).astype(int) - dv, 0, h - 1)
             z = depth[v, u].astype(float)
             ok = z > 0
             if ok.sum() < len(z) / 2:
