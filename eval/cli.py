@@ -135,7 +135,7 @@ def build_parser() -> argparse.ArgumentParser:
     eval_sub = evaluate.add_subparsers(dest="target", required=True, metavar="TARGET")
     perception = eval_sub.add_parser(
         "perception",
-        help="train and compare the GP, SVM and scikit-learn GP classifiers",
+        help="train and compare the GP, SVM, scikit-learn GP and PointNet ensemble classifiers",
         description="Renders (or loads from --cache) views of every object instance, fits "
         "the FPFH codebook, trains the classifiers on the known instances and evaluates them "
         "on the unknown ones and on cluttered-scene segments; writes metrics.json, "
@@ -146,7 +146,8 @@ def build_parser() -> argparse.ArgumentParser:
         "--classifiers",
         default=None,
         help="comma-separated classifiers to compare (default: all of gp, gp_mode, svm, "
-        "sklearn_gp; scikit-learn's GP is cubic in the training views: minutes on v2's 3,800)",
+        "sklearn_gp, pointnet_ensemble; scikit-learn's GP is cubic in the training views: "
+        "minutes on v2's 3,800)",
     )
     perception.add_argument(
         "--out", type=Path, default=Path("results/perception"), help="report folder"
@@ -172,7 +173,8 @@ def build_parser() -> argparse.ArgumentParser:
         "--policies",
         default="random,gp-ipm",
         help="comma-separated policies: random, gp-ipm (inspect in hand), gp-ipm-area "
-        "(inspect in the inspection area), svm-ipm (SVM confidences), oracle (true label of "
+        "(inspect in the inspection area), svm-ipm (SVM confidences), deep-ipm (a PointNet "
+        "deep ensemble's confidences), oracle (true label of "
         "the object held; v2), oracle-scene (true label of the segment aimed at)",
     )
     sorting.add_argument(
@@ -327,7 +329,7 @@ def _print_figures(figures: dict, json_arg: str | None, report) -> None:
 
 def _classifiers(args) -> dict:
     """``{"classifiers": (...)}`` from ``--classifiers``, checked; ``{}`` without it."""
-    from ipbench.perception.classifiers import CLASSIFIERS
+    from ipbench.eval.perception import EVAL_CLASSIFIERS as CLASSIFIERS
 
     if args.classifiers is None:
         return {}

@@ -5,10 +5,14 @@ Xtion (with its depth noise) looks at it from ``elevations`` at ``distance``, wh
 turns in ``yaw_step`` steps (18 views at 20 deg), upright and, for objects that can lie, on its
 side. Every view goes through the same perception as an episode: point cloud, table plane,
 prism and clustering; the largest segment's FPFH descriptors are stored (not yet encoded, so
-the codebook can be refitted). *Known* instances make the training set, *unknown* ones the
-test set; segments cut out of cluttered scenes, labelled by their overlap with the
-ground-truth masks, make the realistic test set. Each instance is also picked up and turned in
-front of the wrist camera (:mod:`ipbench.eval.hand_views`): the in-hand views.
+the codebook can be refitted), with a sample of :data:`~ipbench.perception.viewset.POINTS_PER_VIEW`
+of its points (world frame, m, z up: the frame the FPFH are computed in; drawn by
+:func:`~ipbench.perception.viewset.sample_points` with a generator seeded per view, apart from
+the depth-noise stream, so the FPFH are those of version 2) for point-cloud networks. *Known*
+instances make the training set, *unknown* ones the test set; segments cut out of cluttered
+scenes, labelled by their overlap with the ground-truth masks, make the realistic test set.
+Each instance is also picked up and turned in front of the wrist camera
+(:mod:`ipbench.eval.hand_views`): the in-hand views.
 
 The objects and the sensor are those of ``DatasetConfig.env_id``: for ``ipbench/Sorting-v2`` the
 v2 catalogue (its *train* split is known; *similar* and *novel* are held out) and the
@@ -58,13 +62,14 @@ from ipbench.eval.workers import run_tasks
 from ipbench.perception.cloud import PerceptionError, depth_to_points
 from ipbench.perception.features import FeatureConfig, fpfh
 from ipbench.perception.segmentation import SegmentationConfig, segment_scene
-from ipbench.perception.viewset import ViewSet
+from ipbench.perception.viewset import POINTS_PER_VIEW, ViewSet, sample_points
 from ipbench.policies import EVAL_CAMERAS
 
 __all__ = [
     "DatasetConfig",
     "ViewSet",
     "render_instance_views",
+    "render_in_hand_points",
     "render_cluttered_segments",
     "load_or_build",
     "missing_parts",
@@ -73,9 +78,20 @@ __all__ = [
     "DATASET_VERSION",
 ]
 
-DATASET_VERSION = 2
+DATASET_VERSION = 3
 """Bumped whenever the rendering protocol changes, so old caches are rebuilt (2: in-hand
-captures hold short objects with the pads under their top, :mod:`ipbench.eval.hand_views`)."""
+captures hold short objects with the pads under their top, :mod:`ipbench.eval.hand_views`;
+3: every view also stores a sample of its points, ``ViewSet.points``; the FPFH are
+unchanged)."""
+
+_POINT_STREAMS = {"isolated": 1, "in_hand": 2, "cluttered": 3}
+"""Distinguishes the point-sampling seeds of the view sources (:func:`_point_rng`)."""
+
+
+def _point_rng(config: DatasetConfig, source: str, *ids: int) -> np.random.Generator:
+    """The generator that samples the points of one view: seeded by the dataset seed, the
+    view source and ``ids`` (instance and view numbers, or scene seed and segment number)."""
+    return np.random.default_rng([config.seed, _POINT_STREAMS[source], *ids])
 
 
 @dataclass(frozen=True)
@@ -219,10 +235,10 @@ def render_instance_views(inst: ObjectInstance, config: DatasetConfig) -> ViewSe
     toward_robot = places.scene_view[:2] - places.scene_target[:2]
     toward_robot /= np.linalg.norm(toward_robot)
     qadr = model.jnt_qposadr[model.body_jntadr[world.object_bodies[0]]]
-    descriptors, labels = [], []
+    descriptors, labels, points = [], [], []
     camera_q: dict[float, dict[str, float]] = {}
     try:
-        for pose, yaw, elevation in _views(config, inst):
+        for view, (pose, yaw, elevation) in enumerate(_views(config, inst)):
             quat = np.empty(4)
             mujoco.mju_mulQuat(quat, [np.cos(yaw / 2), 0, 0, np.sin(yaw / 2)], pose.quat)
             data.qpos[qadr : qadr + 3] = center + [0, 0, pose.height]
@@ -256,10 +272,26 @@ def render_instance_views(inst: ObjectInstance, config: DatasetConfig) -> ViewSe
             desc = fpfh(biggest.points, config.features, viewpoint=pose_cw[:3, 3])
             descriptors.append(desc.astype(np.float32))
             labels.append(CATEGORIES.index(inst.category))
+            rng_points = _point_rng(config, "isolated", inst.index, _category(inst), view)
+            points.append(sample_points(biggest.points, POINTS_PER_VIEW, rng_points))
     finally:
         renderer.close()
     n = len(descriptors)
-    return ViewSet.from_views(descriptors, labels, [inst.name] * n, [inst.known] * n, "isolated")
+    names, known = [inst.name] * n, [inst.known] * n
+    return ViewSet.from_views(descriptors, labels, names, known, "isolated", points)
+
+
+def _category(inst: ObjectInstance) -> int:
+    return CATEGORIES.index(inst.category)
+
+
+def render_in_hand_points(inst: ObjectInstance, config: DatasetConfig) -> ViewSet:
+    """:func:`~ipbench.eval.hand_views.render_in_hand_views` with each view's point sample
+    (view ``v`` drawn by :func:`_point_rng` of ``("in_hand", instance, category, v)``)."""
+    category = _category(inst)
+    return render_in_hand_views(
+        inst, config, lambda v: _point_rng(config, "in_hand", inst.index, category, v)
+    )
 
 
 def render_cluttered_segments(config: DatasetConfig, progress: bool = True) -> ViewSet:
@@ -278,14 +310,14 @@ def render_cluttered_segments(config: DatasetConfig, progress: bool = True) -> V
         env = gym.make(
             config.env_id, scene="cluttered", depth_noise=config.sensor, cameras=EVAL_CAMERAS
         )
-    descriptors, labels, names, known = [], [], [], []
+    descriptors, labels, names, known, points = [], [], [], [], []
     try:
         for seed in tqdm(config.cluttered_seeds, desc="cluttered scenes", disable=not progress):
             obs, info = env.reset(seed=seed)
             cloud = depth_to_points(obs["wrist_depth"], obs["wrist_K"], obs["wrist_pose"])
             mask = info["wrist_mask"].reshape(-1)
             eye = obs["wrist_pose"][:3, 3]
-            for segment in segment_scene(cloud, config.segmentation).segments:
+            for number, segment in enumerate(segment_scene(cloud, config.segmentation).segments):
                 ids, counts = np.unique(mask[segment.pixels], return_counts=True)
                 best = int(np.argmax(counts))
                 if ids[best] < 0 or counts[best] < config.min_overlap * len(segment.pixels):
@@ -296,12 +328,14 @@ def render_cluttered_segments(config: DatasetConfig, progress: bool = True) -> V
                 labels.append(CATEGORIES.index(obj["category"]))
                 names.append(obj["instance"])
                 known.append(obj["known"])
+                rng_points = _point_rng(config, "cluttered", seed, number)
+                points.append(sample_points(segment.points, POINTS_PER_VIEW, rng_points))
     finally:
         env.close()
-    return ViewSet.from_views(descriptors, labels, names, known, "cluttered")
+    return ViewSet.from_views(descriptors, labels, names, known, "cluttered", points)
 
 
-_RENDERERS = {"isolated": render_instance_views, "in_hand": render_in_hand_views}
+_RENDERERS = {"isolated": render_instance_views, "in_hand": render_in_hand_points}
 """Per-instance view sources and what renders them."""
 
 

@@ -25,6 +25,7 @@ or the wrist cannot turn further.
 from __future__ import annotations
 
 import hashlib
+from collections.abc import Callable
 from typing import TYPE_CHECKING
 
 import gymnasium as gym
@@ -37,7 +38,7 @@ from ipbench.envs.sorting import COMMANDS, workcell_places
 from ipbench.perception.cloud import PerceptionError, depth_to_points
 from ipbench.perception.features import fpfh
 from ipbench.perception.segmentation import segment_in_hand
-from ipbench.perception.viewset import ViewSet
+from ipbench.perception.viewset import POINTS_PER_VIEW, ViewSet, sample_points
 from ipbench.policies import EVAL_CAMERAS
 from ipbench.policies.free_grasp import GRASP_DEPTH
 from ipbench.policies.kinematics import HandKinematics
@@ -73,11 +74,17 @@ def _layout(inst: ObjectInstance, pose_name: str, yaw: float) -> Layout | None:
     return Layout("in_hand", 0, (placed,))
 
 
-def render_in_hand_views(inst: ObjectInstance, config: DatasetConfig) -> ViewSet:
+def render_in_hand_views(
+    inst: ObjectInstance,
+    config: DatasetConfig,
+    point_rng: Callable[[int], np.random.Generator] | None = None,
+) -> ViewSet:
     """Up to ``config.in_hand_views`` in-hand views of ``inst`` per grasp: one grasp per pose
     of :data:`HAND_POSES` and each of ``config.in_hand_placements`` yaws on the table (see the
-    module docstring)."""
+    module docstring), each with a :data:`~ipbench.perception.viewset.POINTS_PER_VIEW` sample
+    of its segment's points (view ``v`` drawn by ``point_rng(v)``; None: no points stored)."""
     descriptors: list[np.ndarray] = []
+    segments: list[np.ndarray] = []
     if config.in_hand_views < 1:
         return ViewSet.from_views([], [], [], [], "in_hand")
     kinematics = HandKinematics()
@@ -91,19 +98,27 @@ def render_in_hand_views(inst: ObjectInstance, config: DatasetConfig) -> ViewSet
                     break
                 seed = _seed(config, inst, f"{pose_name}/{placement}")
                 _, info = env.reset(seed=seed, options={"layout": layout})
-                descriptors += _capture(env, info["objects"][0], inst, kinematics, config)
+                for desc, points in _capture(env, info["objects"][0], inst, kinematics, config):
+                    descriptors.append(desc)
+                    segments.append(points)
     finally:
         env.close()
     n = len(descriptors)
     label = CATEGORIES.index(inst.category)
+    samples = None
+    if point_rng is not None:
+        samples = [sample_points(p, POINTS_PER_VIEW, point_rng(v)) for v, p in enumerate(segments)]
     return ViewSet.from_views(
-        descriptors, [label] * n, [inst.name] * n, [inst.known] * n, "in_hand"
+        descriptors, [label] * n, [inst.name] * n, [inst.known] * n, "in_hand", samples
     )
 
 
-def _capture(env, obj: dict, inst: ObjectInstance, kinematics, config) -> list[np.ndarray]:
+def _capture(
+    env, obj: dict, inst: ObjectInstance, kinematics, config
+) -> list[tuple[np.ndarray, np.ndarray]]:
     """Pick the object ``obj`` (its ``info["objects"]`` entry) and describe up to
-    ``config.in_hand_views`` in-hand views, turning it between them."""
+    ``config.in_hand_views`` in-hand views, turning it between them: (FPFH, segment points)
+    per view."""
     quat = obj["pose"][3:]
     yaw = grasp_yaws(quat, inst.size, round_=inst.category in ROUND)[0]
     yaw = (yaw + np.pi) % (2 * np.pi) - np.pi  # the action space's range
@@ -124,13 +139,16 @@ def _capture(env, obj: dict, inst: ObjectInstance, kinematics, config) -> list[n
             break  # dropped, or the wrist cannot turn further
         action["yaw"] = np.array([np.radians(config.in_hand_turn_deg)], np.float32)
         view = _describe(obs, kinematics, config)
-        if view is not None and len(view):
+        if view is not None and len(view[0]):
             views.append(view)
     return views
 
 
-def _describe(obs: dict, kinematics: HandKinematics, config: DatasetConfig) -> np.ndarray | None:
-    """FPFH descriptors (n, 33) of the object in hand, None when it is not segmented."""
+def _describe(
+    obs: dict, kinematics: HandKinematics, config: DatasetConfig
+) -> tuple[np.ndarray, np.ndarray] | None:
+    """FPFH descriptors (n, 33) of the object in hand and its segment's (m, 3) points (world,
+    m), None when it is not segmented."""
     q = obs["qpos"]
     try:
         cloud = depth_to_points(obs["wrist_depth"], obs["wrist_K"], obs["wrist_pose"])
@@ -141,4 +159,5 @@ def _describe(obs: dict, kinematics: HandKinematics, config: DatasetConfig) -> n
         return None
     if segment is None:
         return None
-    return fpfh(segment.points, config.features, viewpoint=obs["wrist_pose"][:3, 3])
+    desc = fpfh(segment.points, config.features, viewpoint=obs["wrist_pose"][:3, 3])
+    return desc, segment.points

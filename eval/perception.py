@@ -7,12 +7,14 @@ on the known instances' in-hand views (see :mod:`ipbench.eval.dataset`). Both sh
 codebook, fitted on the isolated views. The test sets are the *unknown* instances (isolated,
 and in hand) and segments cut out of cluttered scenes. The GP, the Platt-calibrated SVM and
 scikit-learn's one-vs-rest GP are trained on the same 256-word bag-of-words vectors, for all
-five classes and for the chapter-6 subset (juice bottle, milk carton, mug). Written to the
-output folder: ``metrics.json`` (keys ``5class`` and ``3class``, each with ``gp``, ``svm``,
-``sklearn_gp`` and their ``accuracy``, ``log_loss``, ``ece``, ``fit_s``, ``predict_s`` on the
-unknown isolated instances, the same on cluttered segments under ``cluttered``, the in-hand
-model on unknown in-hand views under ``in_hand`` and the scene model on them under
-``in_hand_scene_model``), ``perception.md`` and PNG figures.
+five classes and for the chapter-6 subset (juice bottle, milk carton, mug); the PointNet deep
+ensemble ``pointnet_ensemble`` (:mod:`ipbench.perception.pointnet`) on the same views' point
+samples. Written to the output folder: ``metrics.json`` (keys ``5class`` and ``3class``, each
+with every classifier of :attr:`PerceptionEvalConfig.classifiers` and its ``accuracy``,
+``log_loss``, ``ece``, ``fit_s``, ``predict_s`` on the unknown isolated instances, a point
+classifier also ``predict_ms_per_scene``, the same on cluttered segments under
+``cluttered``, the in-hand model on unknown in-hand views under ``in_hand`` and the scene model
+on them under ``in_hand_scene_model``), ``perception.md`` and PNG figures.
 """
 
 from __future__ import annotations
@@ -20,7 +22,7 @@ from __future__ import annotations
 import hashlib
 import json
 import time
-from dataclasses import dataclass, field, replace
+from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -29,6 +31,7 @@ from threadpoolctl import threadpool_limits
 from ipbench.assets.objects import CATEGORIES, instances
 from ipbench.envs.depth_noise import SENSOR_EFFECTS, without_effect
 from ipbench.eval.dataset import DatasetConfig, ViewSet, load_or_build
+from ipbench.perception._pointnet_config import PointNetConfig
 from ipbench.perception.classifiers import CLASSIFIERS, GPClassifier, make_classifier
 from ipbench.perception.cloud import depth_to_points
 from ipbench.perception.features import Codebook
@@ -47,6 +50,8 @@ from ipbench.policies import EVAL_CAMERAS
 __all__ = [
     "ABLATION_PROTOCOL",
     "CONDITIONS",
+    "EVAL_CLASSIFIERS",
+    "POINT_CLASSIFIERS",
     "SPLIT_TESTS",
     "PerceptionEvalConfig",
     "SUBSETS",
@@ -90,6 +95,17 @@ ABLATION_PROTOCOL: dict = {
 a re-render of train and test views, so the ablation compares its rows with its own
 all-effects-on row, not with ``splits``."""
 
+POINT_CLASSIFIERS: tuple[str, ...] = ("pointnet_ensemble",)
+"""Classifiers of a view's points (:attr:`ViewSet.points`) rather than its FPFH bag of words:
+the PointNet deep ensemble of :mod:`ipbench.perception.pointnet`."""
+
+EVAL_CLASSIFIERS: tuple[str, ...] = CLASSIFIERS + POINT_CLASSIFIERS
+"""Every classifier ``ipbench eval perception`` compares by default."""
+
+SCENE_SEGMENTS = 15
+"""Segments of the scene whose classification time is reported for point classifiers
+(``predict_ms_per_scene``: one core)."""
+
 THESIS = {"5class": {"gp": 0.79, "svm": 0.75}, "3class": {"gp": 0.92, "svm": 0.83}}
 """The thesis' accuracies on real Xtion data (ch. 5 and 6), shown beside ours."""
 
@@ -103,21 +119,33 @@ class PerceptionEvalConfig:
     dataset : how views are rendered (its hash keys the cache).
     codebook_size : words in the bag-of-words codebook (the thesis' best: 256).
     codebook_samples : descriptors sampled from the training views to fit the codebook.
-    classifiers : which classifiers to compare.
-    seed : seeds the codebook and the classifiers.
+    classifiers : which classifiers to compare (of :data:`EVAL_CLASSIFIERS`).
+    seed : seeds the codebook and the classifiers (the PointNet ensemble's too: it replaces
+        ``pointnet.seed``).
     segmentation_seeds : episode seeds of both standard scenes whose segmentation is scored
         against the ground-truth masks.
     ablation : also run the sensor ablation (:func:`sensor_ablation`): every switchable
         effect of the env's sensor switched off in turn, on the :data:`ABLATION_PROTOCOL`.
+    pointnet : the PointNet ensemble's architecture and training (``pointnet_ensemble``).
     """
 
     dataset: DatasetConfig = field(default_factory=DatasetConfig)
     codebook_size: int = 256
     codebook_samples: int = 60_000
-    classifiers: tuple[str, ...] = CLASSIFIERS
+    classifiers: tuple[str, ...] = EVAL_CLASSIFIERS
     seed: int = 0
     segmentation_seeds: tuple[int, ...] = tuple(range(10_100, 10_110))
     ablation: bool = False
+    pointnet: PointNetConfig = field(default_factory=PointNetConfig)
+
+    def __post_init__(self) -> None:
+        unknown = [c for c in self.classifiers if c not in EVAL_CLASSIFIERS]
+        if unknown:
+            raise ValueError(f"unknown classifiers {unknown}; valid: {', '.join(EVAL_CLASSIFIERS)}")
+
+    def pointnet_config(self) -> PointNetConfig:
+        """:attr:`pointnet` seeded by :attr:`seed`."""
+        return replace(self.pointnet, seed=self.seed)
 
     @classmethod
     def for_env(cls, env_id: str, **overrides) -> PerceptionEvalConfig:
@@ -134,19 +162,21 @@ def model_key(
     condition: str = "scene",
 ) -> str:
     """Hash of everything that determines the trained ``classifier`` model for ``classes``
-    in the viewing ``condition``."""
-    text = json.dumps(
-        [
-            config.dataset.key(),
-            config.codebook_size,
-            config.codebook_samples,
-            config.seed,
-            list(classes),
-            classifier,
-            condition,
-            MODEL_VERSION,
-        ]
-    )
+    in the viewing ``condition`` (a point classifier's: also its settings, not the codebook's;
+    the FPFH classifiers' keys are as before)."""
+    fields = [
+        config.dataset.key(),
+        config.codebook_size,
+        config.codebook_samples,
+        config.seed,
+        list(classes),
+        classifier,
+        condition,
+        MODEL_VERSION,
+    ]
+    if classifier in POINT_CLASSIFIERS:
+        fields[1:3] = [asdict(config.pointnet_config())]
+    text = json.dumps(fields)
     return hashlib.sha256(text.encode()).hexdigest()[:16]
 
 
@@ -172,19 +202,25 @@ def trained_models(
     condition: str = "scene",
     workers: int = 2,
     progress: bool = True,
-) -> dict[str, PerceptionModel]:
-    """The perception models (codebook + classifier, each one of ``"gp"``, ``"gp_mode"``,
-    ``"svm"``, ``"sklearn_gp"``) for ``classes`` in the viewing ``condition`` (one of
+) -> dict:
+    """The perception models for ``classes`` in the viewing ``condition`` (one of
     :data:`CONDITIONS`), cached in ``cache`` (trained if missing, stale or corrupt) — what the
-    sorting policies classify with. Models trained together share one dataset load, codebook
-    and encoding; the codebook is fitted on the isolated views in every condition. Missing
-    views render in ``workers`` processes, with a bar if ``progress``
+    sorting policies classify with: a :class:`PerceptionModel` (codebook + classifier) for each
+    of ``"gp"``, ``"gp_mode"``, ``"svm"``, ``"sklearn_gp"``, and a
+    :class:`~ipbench.perception.pointnet.PointNetEnsemble` (``probabilities`` of segments'
+    (n_i, 3) points) for ``"pointnet_ensemble"``. Models trained together share one dataset
+    load, codebook and encoding; the codebook is fitted on the isolated views in every
+    condition. Missing views render in ``workers`` processes, with a bar if ``progress``
     (:func:`ipbench.eval.prepare.prepare_perception` renders and trains several models in
     one pool)."""
+    unknown = [c for c in classifiers if c not in EVAL_CLASSIFIERS]
+    if unknown:
+        raise ValueError(f"unknown classifiers {unknown}; valid: {', '.join(EVAL_CLASSIFIERS)}")
     shared: dict = {}
 
-    def training_data() -> tuple[Codebook, np.ndarray, np.ndarray]:
-        if not shared:  # the isolated views (the codebook's) and the condition's: no others
+    def condition_views() -> tuple[ViewSet, ViewSet, np.ndarray, np.ndarray]:
+        """All loaded views, the condition's training views of ``classes``, their labels."""
+        if "views" not in shared:  # the isolated views (the codebook's) and the condition's
             kinds = tuple(dict.fromkeys((CONDITIONS["scene"], CONDITIONS[condition])))
             views = load_or_build(
                 cache,
@@ -194,21 +230,37 @@ def trained_models(
                 training_only=True,
                 kinds=kinds,
             )
-            codebook = _fit_codebook(training_views(views, "scene"), config)
             train = training_views(views, condition)
             keep = np.isin(train.labels, [CATEGORIES.index(c) for c in classes])
             labels = np.array([classes.index(CATEGORIES[v]) for v in train.labels[keep]])
-            shared["data"] = (codebook, encode(train, codebook)[keep], labels)
-        return shared["data"]
-
-    def trainer(classifier: str, key: str):
-        def train() -> PerceptionModel:
-            codebook, x, y = training_data()
-            if len(y) == 0:
+            if len(labels) == 0:
                 raise ValueError(
                     f"no {condition} training views in the dataset; set "
                     "DatasetConfig.in_hand_views > 0 to render in-hand views"
                 )
+            shared["views"] = (views, train, keep, labels)
+        return shared["views"]
+
+    def training_data() -> tuple[Codebook, np.ndarray, np.ndarray]:
+        if "data" not in shared:
+            views, train, keep, labels = condition_views()
+            codebook = _fit_codebook(training_views(views, "scene"), config)
+            shared["data"] = (codebook, encode(train, codebook)[keep], labels)
+        return shared["data"]
+
+    def point_trainer(key: str):
+        def train():
+            from ipbench.perception.pointnet import PointNetEnsemble
+
+            _, views, keep, y = condition_views()
+            model = PointNetEnsemble(len(classes), config.pointnet_config(), classes, key)
+            return model.fit(views.points[keep], y, groups=views.instance[keep])
+
+        return train
+
+    def trainer(classifier: str, key: str):
+        def train() -> PerceptionModel:
+            codebook, x, y = training_data()
             clf = make_classifier(classifier, n_classes=len(classes), seed=config.seed)
             clf.fit(x, y)
             fitted = clf.model_ if isinstance(clf, GPClassifier) else clf
@@ -220,9 +272,13 @@ def trained_models(
     with threadpool_limits(1):
         for classifier in classifiers:
             key = model_key(config, classes, classifier, condition)
-            models[classifier] = load_or_train(
-                model_path(cache, key), key, trainer(classifier, key)
-            )
+            path = model_path(cache, key)
+            if classifier in POINT_CLASSIFIERS:
+                from ipbench.perception.pointnet import load_or_train_pointnet
+
+                models[classifier] = load_or_train_pointnet(path, key, point_trainer(key))
+            else:
+                models[classifier] = load_or_train(path, key, trainer(classifier, key))
     return models
 
 
@@ -236,7 +292,7 @@ def trained_model(
     config: PerceptionEvalConfig = PerceptionEvalConfig(),
     classes: tuple[str, ...] = CATEGORIES,
     classifier: str = "gp",
-) -> PerceptionModel:
+):
     """One model of :func:`trained_models`."""
     return trained_models(cache, config, classes, (classifier,))[classifier]
 
@@ -339,29 +395,59 @@ def sensor_ablation(cache: Path, config: PerceptionEvalConfig) -> dict:
         fitted: dict = {}
         out[effect] = {}
         for name in config.classifiers:
-            clf, _ = _fit(name, x_train, train.labels, index, config.seed, fitted)
-            out[effect][name] = _brief(_score(clf, test, x_test, index)[0])
+            clf, _ = _fit(name, _inputs(name, train, x_train), train, index, config, fitted)
+            out[effect][name] = _brief(_score(clf, test, _inputs(name, test, x_test), index)[0])
     return out
 
 
+def _inputs(name: str, views: ViewSet, bow: np.ndarray) -> np.ndarray:
+    """What classifier ``name`` reads of ``views``: their (n, P, 3) points for a point
+    classifier, else their bag-of-words vectors ``bow``."""
+    return views.points if name in POINT_CLASSIFIERS else bow
+
+
 def _fit(
-    name: str, x: np.ndarray, labels: np.ndarray, index: dict[int, int], seed: int, fitted: dict
+    name: str,
+    x: np.ndarray,
+    train: ViewSet,
+    index: dict[int, int],
+    config: PerceptionEvalConfig,
+    fitted: dict,
 ):
-    """Fit classifier ``name`` on the views whose category is in ``index`` (category -> class);
-    ``fitted`` collects ``(classifier, fit seconds)`` by name (``gp_mode`` reuses ``gp``)."""
-    keep = np.isin(labels, list(index))
-    y = np.array([index[v] for v in labels[keep]])
+    """Fit classifier ``name`` on ``x`` (:func:`_inputs` of ``train``), the views whose
+    category is in ``index`` (category -> class); ``fitted`` collects ``(classifier, fit
+    seconds)`` by name (``gp_mode`` reuses ``gp``)."""
+    keep = np.isin(train.labels, list(index))
+    y = np.array([index[v] for v in train.labels[keep]])
     t0 = time.perf_counter()
     if name == "gp_mode" and "gp" in fitted:  # the same fit, another predictive
         fitted[name] = (
             GPClassifier.from_model(fitted["gp"][0].model_.with_predictive("mode")),
             fitted["gp"][1],
         )
+    elif name in POINT_CLASSIFIERS:
+        from ipbench.perception.pointnet import PointNetEnsemble
+
+        clf = PointNetEnsemble(len(index), config.pointnet_config())
+        clf.fit(x[keep], y, groups=train.instance[keep])
+        fitted[name] = (clf, time.perf_counter() - t0)
     else:
-        clf = make_classifier(name, n_classes=len(index), seed=seed)
+        clf = make_classifier(name, n_classes=len(index), seed=config.seed)
         clf.fit(x[keep], y)
         fitted[name] = (clf, time.perf_counter() - t0)
     return fitted[name]
+
+
+def _scene_predict_ms(clf, clouds: np.ndarray, repeats: int = 5) -> float:
+    """Median wall time (ms, one core) for ``clf`` to classify :data:`SCENE_SEGMENTS` of
+    ``clouds`` (repeated cyclically when fewer), as one scene's segments."""
+    take = [clouds[i % len(clouds)] for i in range(SCENE_SEGMENTS)]
+    times = []
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        clf.predict_proba(take)
+        times.append(time.perf_counter() - t0)
+    return round(1000 * float(np.median(times)), 2)
 
 
 def _score(clf, test: ViewSet, x: np.ndarray, index: dict[int, int]):
@@ -406,6 +492,10 @@ def _run_perception_eval(out: Path, cache: Path, config: PerceptionEvalConfig) -
     x_train = encode(train, codebook)
     x_hand = encode(hand_train, codebook)
     x_tests = {name: encode(t, codebook) for name, t in tests.items()}
+
+    def inputs(name: str, test: str) -> np.ndarray:
+        return _inputs(name, tests[test], x_tests[test])
+
     metrics: dict = {}
     figures: dict = {}
     for subset, classes in SUBSETS.items():
@@ -414,22 +504,24 @@ def _run_perception_eval(out: Path, cache: Path, config: PerceptionEvalConfig) -
         fitted: dict = {}
         fitted_hand: dict = {}
         for name in config.classifiers:
-            clf, fit_s = _fit(name, x_train, train.labels, index, config.seed, fitted)
+            clf, fit_s = _fit(name, _inputs(name, train, x_train), train, index, config, fitted)
             entry: dict = {"fit_s": round(fit_s, 3)}
-            scores, probs, labels = _score(clf, tests["unknown"], x_tests["unknown"], index)
+            scores, probs, labels = _score(clf, tests["unknown"], inputs(name, "unknown"), index)
             entry.update(scores)
+            if name in POINT_CLASSIFIERS and len(tests["unknown"]):
+                entry["predict_ms_per_scene"] = _scene_predict_ms(clf, tests["unknown"].points)
             figures[(subset, name, "unknown")] = (probs, labels)
             for test_name, field_name in (
                 ("cluttered", "cluttered"),
                 ("in_hand", "in_hand_scene_model"),
             ):
-                entry[field_name] = _score(clf, tests[test_name], x_tests[test_name], index)[0]
+                entry[field_name] = _score(clf, tests[test_name], inputs(name, test_name), index)[0]
             if len(hand_train):
                 hand_clf, hand_fit_s = _fit(
-                    name, x_hand, hand_train.labels, index, config.seed, fitted_hand
+                    name, _inputs(name, hand_train, x_hand), hand_train, index, config, fitted_hand
                 )
                 scores, probs, labels = _score(
-                    hand_clf, tests["in_hand"], x_tests["in_hand"], index
+                    hand_clf, tests["in_hand"], inputs(name, "in_hand"), index
                 )
                 entry["in_hand"] = {**scores, "fit_s": round(hand_fit_s, 3)}
                 figures[(subset, name, "in_hand")] = (probs, labels)
@@ -440,7 +532,8 @@ def _run_perception_eval(out: Path, cache: Path, config: PerceptionEvalConfig) -
                     model = hand_clf if split == "in_hand" else scene_clf
                     got = {"n": 0}
                     if model is not None:
-                        got = _score(model, test, x_split[split], index)[0]
+                        x = _inputs(name, test, x_split[split])
+                        got = _score(model, test, x, index)[0]
                     splits.setdefault(split, {})[name] = _brief(got)
     metrics["splits"] = splits
     if config.ablation:

@@ -117,6 +117,30 @@ def _calibration_note(metrics: dict) -> list[str]:
     return lines
 
 
+def _pointnet_note(metrics: dict) -> list[str]:
+    """What ``pointnet_ensemble`` reads and what it costs (fit, one scene's prediction)."""
+    rows = [
+        f"- {subset}: fit {m['fit_s']:.1f} s, {m['predict_ms_per_scene']:.1f} ms to classify a "
+        "scene of 15 segments (one core)"
+        for subset, by_name in metrics.items()
+        if isinstance(by_name, dict)
+        for name, m in by_name.items()
+        if name == "pointnet_ensemble" and "predict_ms_per_scene" in m
+    ]
+    if not rows:
+        return []
+    return [
+        "## PointNet deep ensemble (`pointnet_ensemble`)",
+        "",
+        "Classifies each view's points (a fixed-size sample, centred, metric scale, z up) "
+        "rather than its FPFH bag of words: independently seeded PointNets trained on the same "
+        "views as the GP, their softmax outputs averaged (`ipbench.perception.pointnet`).",
+        "",
+        *rows,
+        "",
+    ]
+
+
 _SPLIT_TITLES = {
     "similar": "similar (new instances of trained families, table top)",
     "novel": "novel (held-out families, table top)",
@@ -204,7 +228,7 @@ def write_report(
             f"{m['merged']} | {m['split']} |"
         )
     lines += ["", *_splits_table(metrics, thesis), *_ablation_table(metrics)]
-    lines += ["", *_calibration_note(metrics), ""]
+    lines += ["", *_calibration_note(metrics), "", *_pointnet_note(metrics)]
     for subset, classes in subsets.items():
         lines += [
             f"## {subset}: {', '.join(classes)}",

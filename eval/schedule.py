@@ -41,6 +41,7 @@ COST_FACTOR: dict[str, float] = {
     "oracle-scene": 1.0,
     "gp-ipm": 1.4,
     "svm-ipm": 1.4,
+    "deep-ipm": 1.4,
     "gp-ipm-area": 1.6,
 }
 """Relative cost per object of a policy's episode (inspections add skills); others: 1.5."""

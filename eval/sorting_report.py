@@ -45,7 +45,9 @@ __all__ = [
     "write_report",
 ]
 
-_POLICY_ORDER = ("oracle", "oracle-scene", "gp-ipm", "gp-ipm-area", "svm-ipm", "random")
+_POLICY_ORDER = (
+    "oracle", "oracle-scene", "gp-ipm", "gp-ipm-area", "svm-ipm", "deep-ipm", "random",
+)  # fmt: skip
 _SCENE_ORDER = ("uncluttered", "cluttered")
 _REQUIRED = (
     "scene",
@@ -617,8 +619,9 @@ def _paired_lines(scene: str, runs: Mapping[str, Sequence[Mapping]], summary: Ma
         return []
     others = _ordered((p for p in summary if p != "random"), ("gp-ipm",))
     pairs = [(p, "random") for p in others]
-    if "gp-ipm" in summary and "svm-ipm" in summary:
-        pairs.append(("gp-ipm", "svm-ipm"))
+    for other in ("svm-ipm", "deep-ipm"):
+        if "gp-ipm" in summary and other in summary:
+            pairs.append(("gp-ipm", other))
     return [line for p, b in pairs for line in (_paired_line(scene, runs, summary, p, b), "")]
 
 

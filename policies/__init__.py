@@ -1,5 +1,6 @@
 """Sorting policies: random sorting, GP-IPM (in hand / in the inspection area), SVM-IPM,
-the oracle, and the scripted ground-truth sorter of the demo.
+deep-IPM (the GP-IPM loop on a PointNet deep ensemble's confidences), the oracle, and the
+scripted ground-truth sorter of the demo.
 
 :func:`make_policy` builds one by name from the trained perception models.
 """
@@ -11,6 +12,7 @@ from dataclasses import dataclass
 from ipbench.envs.sorting import COMMANDS
 from ipbench.perception.features import DEFAULT_FEATURES, FeatureConfig
 from ipbench.perception.model import PerceptionModel
+from ipbench.perception.pointnet import PointNetEnsemble
 from ipbench.perception.segmentation import DEFAULT_SEGMENTATION, SegmentationConfig
 from ipbench.policies.base import Decision, NothingToSort, Policy, PolicyError
 from ipbench.policies.fusion import FUSIONS
@@ -40,6 +42,7 @@ POLICIES: tuple[str, ...] = (
     "gp-ipm",
     "gp-ipm-area",
     "svm-ipm",
+    "deep-ipm",
     "oracle",
     "oracle-scene",
 )
@@ -63,6 +66,7 @@ INTERACTIVE: dict[str, tuple[str, str]] = {
     "gp-ipm": ("gp", "hand"),
     "gp-ipm-area": ("gp", "area"),
     "svm-ipm": ("svm", "hand"),
+    "deep-ipm": ("pointnet_ensemble", "hand"),
 }
 """The interactive policies: name -> (classifier, inspection mode, see
 :data:`~ipbench.policies.interactive.INSPECTIONS`)."""
@@ -73,8 +77,10 @@ class PolicyModels:
     """What the policies perceive with.
 
     ``gp``/``svm``: trained models for views of the table (``svm`` only needed by
-    ``svm-ipm``); ``gp_hand``/``svm_hand``: the same classifiers trained on in-hand views, for
-    in-hand inspections (None: the table model classifies those too); ``thresholds``: the
+    ``svm-ipm``; ``pointnet_ensemble`` by ``deep-ipm``: a
+    :class:`~ipbench.perception.pointnet.PointNetEnsemble` on the segments' points);
+    ``gp_hand``/``svm_hand``/``pointnet_ensemble_hand``: the same classifiers trained on in-hand
+    views, for in-hand inspections (None: the table model classifies those too); ``thresholds``: the
     validated confidence threshold per classifier (``{"gp": 0.7, "svm": 0.8}``);
     ``inspection_area``: (3,) centre of the inspection area (world, m).
     """
@@ -85,6 +91,8 @@ class PolicyModels:
     svm: PerceptionModel | None = None
     gp_hand: PerceptionModel | None = None
     svm_hand: PerceptionModel | None = None
+    pointnet_ensemble: PointNetEnsemble | None = None
+    pointnet_ensemble_hand: PointNetEnsemble | None = None
     segmentation: SegmentationConfig = DEFAULT_SEGMENTATION
     features: FeatureConfig = DEFAULT_FEATURES
 
@@ -100,7 +108,7 @@ def make_policy(
     values mean ``commands`` (``env.unwrapped.commands``; the oracle picks first where it
     can, see :mod:`ipbench.policies.oracle`)."""
 
-    def perceiver(model: PerceptionModel | None, what: str) -> Perceiver:
+    def perceiver(model: PerceptionModel | PointNetEnsemble | None, what: str) -> Perceiver:
         if model is None:
             raise PolicyError(f"policy {name!r} needs a trained {what} model (PolicyModels.{what})")
         return Perceiver(

@@ -17,6 +17,7 @@ import numpy as np
 from ipbench.perception.cloud import PerceptionError, depth_to_points
 from ipbench.perception.features import DEFAULT_FEATURES, FeatureConfig, fpfh
 from ipbench.perception.model import PerceptionModel
+from ipbench.perception.pointnet import PointNetEnsemble
 from ipbench.perception.segmentation import (
     DEFAULT_SEGMENTATION,
     Segment,
@@ -72,7 +73,8 @@ class Perceiver:
     Parameters
     ----------
     model : the trained codebook + classifier for views of the table (and the inspection
-        area).
+        area), or a :class:`~ipbench.perception.pointnet.PointNetEnsemble`, which classifies a
+        segment from its points (no FPFH).
     inspection_area : (3,) centre of the inspection area (world, m).
     segmentation, features : the settings the model's training views were made with.
     hand_model : the model for an object held up to the camera (trained on in-hand views);
@@ -85,11 +87,11 @@ class Perceiver:
 
     def __init__(
         self,
-        model: PerceptionModel,
+        model: PerceptionModel | PointNetEnsemble,
         inspection_area: np.ndarray,
         segmentation: SegmentationConfig = DEFAULT_SEGMENTATION,
         features: FeatureConfig = DEFAULT_FEATURES,
-        hand_model: PerceptionModel | None = None,
+        hand_model: PerceptionModel | PointNetEnsemble | None = None,
         split: SplitConfig | None = DEFAULT_SPLIT,
         envelopes: tuple[ObjectEnvelope, ...] | None = None,
     ) -> None:
@@ -124,10 +126,14 @@ class Perceiver:
         segments: list[Segment],
         eye: np.ndarray,
         inspected: bool,
-        model: PerceptionModel | None = None,
+        model: PerceptionModel | PointNetEnsemble | None = None,
     ):
-        views = [fpfh(s.points, self.features, viewpoint=eye) for s in segments]
-        probs = (model or self.model).probabilities(views)
+        model = model or self.model
+        if isinstance(model, PointNetEnsemble):  # a network on the segments' points
+            probs = model.probabilities([s.points for s in segments])
+        else:  # FPFH bag of words (the thesis' pipeline)
+            views = [fpfh(s.points, self.features, viewpoint=eye) for s in segments]
+            probs = model.probabilities(views)
         return [
             Detection(s, p, self.classes, eye, inspected)
             for s, p in zip(segments, probs, strict=True)

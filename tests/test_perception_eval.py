@@ -20,6 +20,8 @@ from ipbench.eval.perception import (
     split_tests,
     training_views,
 )
+from ipbench.perception.pointnet import PointNetConfig
+from ipbench.perception.viewset import POINTS_PER_VIEW
 
 TINY = DatasetConfig(
     yaw_step_deg=60.0,
@@ -73,6 +75,13 @@ def test_views_cover_known_and_unknown_instances(views):
     for i in range(len(views)):
         d = views.view(i)
         assert d.ndim == 2 and d.shape[1] == 33 and len(d) > 10 and np.isfinite(d).all()
+    # every view of every source keeps a sample of its points (world frame: above the table)
+    assert views.points.shape == (len(views), POINTS_PER_VIEW, 3)
+    assert views.points.dtype == np.float32 and np.isfinite(views.points).all()
+    assert (views.points[..., 2] > 0.5).all()
+    for i in np.flatnonzero(views.source == "isolated")[:5]:  # an object, not a table patch
+        extent = np.ptp(views.points[i], axis=0)
+        assert 0.01 < extent.max() < 0.5
 
 
 def test_in_hand_views_show_each_instance_held_by_the_gripper(views):
@@ -133,6 +142,9 @@ def test_a_set_of_views_checks_its_source_and_lengths():
         ViewSet.from_views([one], [1], ["a"], [True], "table")
     with pytest.raises(ValueError, match="one entry per view"):
         ViewSet.from_views([one], [1, 2], ["a"], [True], "isolated")
+    assert np.isnan(vs.points).all()  # stored without points
+    with pytest.raises(ValueError, match="one \\(512, 3\\) sample per view"):
+        ViewSet.from_views([one], [1], ["a"], [True], "isolated", [np.zeros((5, 3))])
 
 
 def test_cache_is_reused_and_a_corrupt_file_is_rebuilt(cache, views, capsys):
@@ -189,7 +201,12 @@ def test_perception_eval_writes_the_report(cache, views, tmp_path):
     metrics = run_perception_eval(
         tmp_path,
         cache,
-        PerceptionEvalConfig(dataset=TINY, codebook_size=32, segmentation_seeds=(10_100,)),
+        PerceptionEvalConfig(
+            dataset=TINY,
+            codebook_size=32,
+            segmentation_seeds=(10_100,),
+            pointnet=PointNetConfig(members=2, n_points=64, widths=(16, 32), head=16, epochs=3),
+        ),
     )
     seg = json.loads((tmp_path / "segmentation.json").read_text())
     assert set(seg) == {"uncluttered", "cluttered"}
@@ -198,7 +215,9 @@ def test_perception_eval_writes_the_report(cache, views, tmp_path):
     saved = json.loads((tmp_path / "metrics.json").read_text())
     assert saved == json.loads(json.dumps(metrics))
     for subset in ("5class", "3class"):
-        for name in ("gp", "svm", "sklearn_gp"):
+        assert "pointnet_ensemble" in saved[subset]  # in the default list
+        assert saved[subset]["pointnet_ensemble"]["predict_ms_per_scene"] > 0
+        for name in ("gp", "svm", "sklearn_gp", "pointnet_ensemble"):
             m = saved[subset][name]
             for key in ("accuracy", "log_loss", "ece", "fit_s", "predict_s"):
                 assert np.isfinite(m[key]), (subset, name, key)
@@ -211,14 +230,15 @@ def test_perception_eval_writes_the_report(cache, views, tmp_path):
     assert list(splits) == list(SPLIT_TESTS)
     assert splits["novel"]["gp"]["n"] == 0  # v1 has one family per category: nothing novel
     for split in ("similar", "in_hand", "clutter"):
-        for name in ("gp", "svm"):
+        for name in ("gp", "svm", "pointnet_ensemble"):
             m = splits[split][name]
             assert m["n"] > 0 and 0 <= m["accuracy"] <= 1 and np.isfinite(m["log_loss"])
     assert splits["similar"]["gp"]["accuracy"] == saved["5class"]["gp"]["accuracy"]
     assert splits["in_hand"]["gp"]["accuracy"] == saved["5class"]["gp"]["in_hand"]["accuracy"]
     assert "ablation" not in saved  # v1 runs no sensor ablation
     text = (tmp_path / "perception.md").read_text()
-    assert "## 5 classes on every test split" in text
+    assert "## 5 classes on every test split" in text and "| pointnet_ensemble |" in text
+    assert "## PointNet deep ensemble" in text
     assert "## 5class" in text and "## 3class" in text and "| cluttered |" in text
     assert "In hand:" in text and "table-top model accuracy" in text
     assert (tmp_path / "confusion_5class_gp.png").stat().st_size > 1000

@@ -288,7 +288,17 @@ def test_the_cell_enters_the_fingerprint_by_content_and_true_adds_nothing(
     copy = tmp_path / "same.json"  # the same calibration at another path: the same run
     copy.write_bytes(wrist_calibration.read_bytes())
     assert replace(cal, calibration=str(copy)).fingerprint("k") == cal.fingerprint("k")
-    assert sorting._validation_key(sorting._Keyed("m"), cal)[-3:] == cal.cell_key()
+    # thresholds are validated in the released cell whatever the evaluated one
+    assert sorting._validation_key(sorting._Keyed("m"), cal) == sorting._validation_key(
+        sorting._Keyed("m"), FAST
+    )
+    from dataclasses import asdict
+
+    val, cell = asdict(cal.validation_config()), ("extrinsics", "calibration", "robot_seed")
+    assert [val[k] for k in cell] == ["true", None, 0]
+    assert {k: v for k, v in val.items() if k not in cell} == {
+        k: v for k, v in asdict(cal).items() if k not in cell
+    }
 
 
 def test_an_episode_runs_in_the_calibrated_cell(models, wrist_calibration, monkeypatch) -> None:
