@@ -188,10 +188,10 @@ def _robot_frame(rec: dict) -> list[str]:
         lines += [
             "",
             f"This run's Xtion unit (one draw per run): depth scale {unit['depth_scale']:+.2%}, "
-            f"offset {1000 * unit['depth_offset_m']:+.1f} mm, depth-to-RGB shift "
-            f"{tuple(unit['shift_px'])} px. A systematic depth error moves every corner along its "
-            "ray (the camera looks down at the board, so mostly along z): the board's shape "
-            "above hardly sees it, the robot frame does.",
+            f"offset {1000 * unit['depth_offset_m']:+.1f} mm; the cell's depth-to-RGB "
+            f"registration shift {tuple(unit['shift_px'])} px. A systematic depth error moves "
+            "every corner along its ray (the camera looks down at the board, so mostly along "
+            "z): the board's shape above hardly sees it, the robot frame does.",
         ]
     lines += [
         "",

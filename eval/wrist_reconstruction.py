@@ -133,7 +133,8 @@ def reconstruct_wrist(
     "mean_abs_distance_error_mm", "axis_mean_abs_residual_mm", "per_trial_rmse_mm", "trials",
     "attempts", "missing_corners", "depth_unit", "robot_frame", "seconds"}``: the board-shape
     figures in the camera frame; ``depth_unit``, the run's unit error (``depth_scale``,
-    ``depth_offset_m``, ``shift_px``; None: none); ``robot_frame``: chain
+    ``depth_offset_m``, and ``shift_px``: the true cell's registration shift; None: none);
+    ``robot_frame``: chain
     (:data:`ROBOT_FRAME_CHAINS`) -> :func:`robot_frame_summary`.
     """
     if depth_noise is not None and not isinstance(depth_noise, DepthNoiseConfig):
@@ -219,7 +220,8 @@ def reconstruct_wrist(
         )
     out = _summary(trials)
     out.update(trials=len(trials), attempts=attempts, missing_corners=missing,
-               depth_unit=None if unit is None else dataclasses.asdict(unit),
+               depth_unit=None if unit is None  # the shift applied: the robot's registration
+               else dataclasses.asdict(dataclasses.replace(unit, shift_px=(du, dv))),
                robot_frame={c: robot_frame_summary(r) for c, r in robot.items()},
                seconds=time.perf_counter() - start)  # fmt: skip
     return out
