@@ -227,6 +227,16 @@ def build_parser() -> argparse.ArgumentParser:
     )
 
     add_eval_exploration(eval_sub)
+    compare = eval_sub.add_parser(
+        "compare",
+        help="two sorting runs paired by seed (e.g. --extrinsics calibrated against true)",
+        description="For every scene and policy both runs ran: accuracy of each on their "
+        "common seeds, failed grasps, and OTHER - BASE paired over seeds (bootstrap interval, "
+        "sign-flip p). Prints a markdown table; --json writes the rows.",
+    )
+    compare.add_argument("base", type=Path, help="folder of `ipbench eval sorting --out BASE`")
+    compare.add_argument("other", type=Path, help="folder of the run compared with BASE")
+    compare.add_argument("--json", type=Path, default=None, help="write the rows to this file")
     add_eval_calibration(eval_sub)
 
     figures = sub.add_parser(
@@ -423,6 +433,22 @@ def main(argv: list[str] | None = None) -> int:
         return 0
     if args.command == "eval" and args.target == "calibration":
         return main_eval_calibration(args, _writable)
+    if args.command == "eval" and args.target == "compare":
+        from ipbench.eval.compare_runs import (
+            CompareError,
+            as_json,
+            compare_runs,
+            comparison_markdown,
+        )
+
+        try:
+            rows = compare_runs(args.base, args.other)
+        except CompareError as err:
+            raise SystemExit(f"ipbench: {err}") from err
+        print(comparison_markdown(rows, str(args.base), str(args.other)), end="")
+        if args.json is not None:
+            args.json.write_text(json.dumps(as_json(rows), indent=1))
+        return 0
     if args.command in ("eval", "bench") and args.target == "exploration":
         return main_exploration(args, _seeds, _writable, _print_figures)
     if args.command == "figures":
