@@ -31,13 +31,27 @@ def add_calibrate(sub) -> argparse.ArgumentParser:
     p.add_argument("--seed", type=int, default=0, help="seed of the pose sampling")
     p.add_argument(
         "--robot-seed",
-        type=int,
-        default=None,
+        type=_robot_seed,
+        default=0,
         help="seed of the simulated cell's model errors (camera mounts, PTU bases and zeros, "
-        "lenses; ipbench.envs.model_errors); omitted: the cell is exactly the nominal model",
+        "lenses; ipbench.envs.model_errors), the envs' robot_seed (default 0, the envs' "
+        "default cell); 'none': the cell is exactly the nominal model",
     )
     p.add_argument("--overwrite", action="store_true", help="replace an existing FILE")
     return p
+
+
+def _robot_seed(text: str) -> int | None:
+    """``--robot-seed``: an int >= 0, or ``none`` (the nominal cell)."""
+    if text.strip().lower() == "none":
+        return None
+    try:
+        seed = int(text)
+    except ValueError:
+        seed = -1
+    if seed < 0:
+        raise argparse.ArgumentTypeError(f"{text!r}; valid: an int >= 0, or none")
+    return seed
 
 
 def main_calibrate(args) -> int:

@@ -11,6 +11,7 @@ def test_calibrate_writes_a_file_that_loads_and_keeps_an_existing_one(tmp_path, 
     assert main(["calibrate", "--out", str(out), "--cameras", "wrist", "--poses", "5"]) == 0
     loaded = CalibrationFile.load(out, expect_cameras=["wrist"])
     assert loaded.hand_eye["wrist"].setup == "eye_in_hand"
+    assert dict(loaded.cell) == {"robot_seed": 0}  # the envs' default cell
     assert "calibration written to" in capsys.readouterr().out
     before = out.read_text()
     with pytest.raises(SystemExit, match="--overwrite"):
@@ -26,3 +27,27 @@ def test_calibrate_rejects_bad_options_with_the_valid_ones(tmp_path, options, me
     with pytest.raises(SystemExit, match=message):
         main(["calibrate", "--out", str(tmp_path / "c.json"), *options])
     assert not (tmp_path / "c.json").exists()
+
+
+def test_the_default_calibration_is_accepted_by_an_env_of_the_default_cell(tmp_path):
+    """``ipbench calibrate --out FILE`` then ``gym.make(..., extrinsics="calibrated",
+    calibration=FILE)`` (both at their default robot seed) is the same cell; ``--robot-seed
+    none`` calibrates the nominal cell, which that env refuses."""
+    import gymnasium as gym
+
+    import ipbench.envs  # noqa: F401
+    from ipbench.envs.extrinsics import ExtrinsicsError
+
+    out = tmp_path / "c.json"
+    assert main(["calibrate", "--out", str(out), "--cameras", "wrist", "--poses", "5"]) == 0
+    kw = {"extrinsics": "calibrated", "cameras": ("wrist",)}
+    env = gym.make("ipbench/Sorting-v2", calibration=str(out), **kw)
+    env.close()
+    nominal = tmp_path / "n.json"
+    args = ["--cameras", "wrist", "--poses", "5", "--robot-seed", "none"]
+    assert main(["calibrate", "--out", str(nominal), *args]) == 0
+    assert dict(CalibrationFile.load(nominal).cell) == {"robot_seed": None}
+    with pytest.raises(ExtrinsicsError, match="measured in the nominal cell"):
+        gym.make("ipbench/Sorting-v2", calibration=str(nominal), **kw)
+    with pytest.raises(SystemExit):
+        main(["calibrate", "--out", str(tmp_path / "x.json"), "--robot-seed", "-2"])
