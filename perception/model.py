@@ -135,12 +135,15 @@ def load_or_train(
     key: str,
     train: Callable[[], PerceptionModel],
     log: Callable[[str], None] = print,
-) -> PerceptionModel:
-    """The model saved at ``path`` if it was trained by ``key``, else ``train()`` (saved)."""
+    kind: type = PerceptionModel,
+):
+    """The model saved at ``path`` if it was trained by ``key``, else ``train()`` (saved).
+    ``kind``: the model class whose ``load(path, key)`` reads it (raising
+    :class:`ModelFileError` on a stale or corrupt file, which is reported and replaced)."""
     path = Path(path)
     if path.exists():
         try:
-            return PerceptionModel.load(path, key)
+            return kind.load(path, key)
         except ModelFileError as err:
             log(f"ipbench: {err}; training a new model")
     model = train()

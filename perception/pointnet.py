@@ -34,7 +34,7 @@ from scipy.optimize import minimize_scalar
 
 from ipbench.perception._pointnet_config import PointNetConfig
 from ipbench.perception._pointnet_net import PointNet, centre, deterministic_cpu, train_member
-from ipbench.perception.model import ModelFileError
+from ipbench.perception.model import ModelFileError, load_or_train
 from ipbench.perception.viewset import sample_points
 
 __all__ = [
@@ -267,12 +267,4 @@ def load_or_train_pointnet(
 ) -> PointNetEnsemble:
     """The ensemble saved at ``path`` if configuration ``key`` trained it, else ``train()``
     (saved there); a stale or corrupt file is reported through ``log`` and replaced."""
-    path = Path(path)
-    if path.exists():
-        try:
-            return PointNetEnsemble.load(path, key)
-        except ModelFileError as err:
-            log(f"ipbench: {err}; training a new model")
-    model = train()
-    model.save(path)
-    return model
+    return load_or_train(path, key, train, log, kind=PointNetEnsemble)
