@@ -161,8 +161,10 @@ def build_parser() -> argparse.ArgumentParser:
         help="run sorting policies as episodes and compare them (thesis Table 5.1)",
         description="Runs every policy on every scene for every seed (the same seeds for "
         "every policy: a paired comparison). Perception models are trained on first use and "
-        "cached in --cache; GP-IPM's confidence threshold is chosen on validation seeds "
-        "(1000-1007, disjoint from the test seeds) and cached too. Each finished episode is "
+        "cached in --cache; the confidence-driven policies' threshold is chosen on the first "
+        "views of validation scenes (seeds 1000-1039, disjoint from the test seeds) and "
+        "cached too; --threshold sets it, --thresholds runs each such policy at several. "
+        "Each finished episode is "
         "appended to OUT/episodes.jsonl, so an interrupted run resumes where it stopped. "
         "Writes OUT/summary.json, OUT/sorting.md, plots and (--video) MP4s.",
     )
@@ -174,8 +176,24 @@ def build_parser() -> argparse.ArgumentParser:
         default="random,gp-ipm",
         help="comma-separated policies: random, gp-ipm (inspect in hand), gp-ipm-area "
         "(inspect in the inspection area), svm-ipm (SVM confidences), deep-ipm (a PointNet "
-        "deep ensemble's confidences), oracle (true label of "
-        "the object held; v2), oracle-scene (true label of the segment aimed at)",
+        "deep ensemble's confidences), oracle-inspect (inspects exactly the objects whose "
+        "first label is wrong), random-inspect@P (inspects a fraction P at random), oracle "
+        "(true label of the object held; v2), oracle-scene (true label of the segment aimed "
+        "at); a confidence-driven policy at threshold T: gp-ipm@T",
+    )
+    sorting.add_argument(
+        "--threshold",
+        type=float,
+        default=None,
+        help="run every confidence-driven policy at this confidence threshold (0..1) instead "
+        "of the validated one",
+    )
+    sorting.add_argument(
+        "--thresholds",
+        default=None,
+        help="comma-separated thresholds (e.g. 0.5,0.8,1.0): each confidence-driven policy "
+        "runs once per threshold, as NAME@T (same seeds, paired); OUT/curve.json and "
+        "curve.png draw accuracy against inspections per object",
     )
     sorting.add_argument(
         "--seeds", default="0:30", help="episode seeds: A:B (A..B-1) or a comma-separated list"
@@ -309,6 +327,22 @@ def _seeds(text: str) -> tuple[int, ...]:
     return seeds
 
 
+def _thresholds(text: str | None) -> tuple[float, ...]:
+    """``--thresholds`` as floats in [0, 1] (None: none given)."""
+    if text is None:
+        return ()
+    try:
+        values = tuple(float(v) for v in text.split(",") if v.strip())
+    except ValueError:
+        values = ()
+    if not values or not all(0.0 <= v <= 1.0 for v in values) or len(set(values)) < len(values):
+        raise SystemExit(
+            f"ipbench: bad --thresholds {text!r}; give distinct comma-separated confidences in "
+            "[0, 1], e.g. 0.5,0.8,1.0"
+        )
+    return values
+
+
 def _writable(path: Path, option: str) -> None:
     """Create folder ``path`` (given as ``option``) or exit with a one-line reason and fix."""
     from ipbench.eval.files import ensure_writable
@@ -401,13 +435,20 @@ def main(argv: list[str] | None = None) -> int:
         return 0
     if args.command == "eval" and args.target == "sorting":
         from ipbench.eval.perception import PerceptionEvalConfig
-        from ipbench.eval.sorting import SortingEvalConfig, SortingEvalError, run_sorting_eval
+        from ipbench.eval.sorting import (
+            SortingEvalConfig,
+            SortingEvalError,
+            expand_thresholds,
+            run_sorting_eval,
+        )
 
         try:
+            policies = tuple(p.strip() for p in args.policies.split(",") if p.strip())
             config = SortingEvalConfig(
                 perception=PerceptionEvalConfig.for_env(_env_id(args.env)),
                 scenes=_scenes(args.scenes),
-                policies=tuple(p.strip() for p in args.policies.split(",") if p.strip()),
+                policies=expand_thresholds(policies, _thresholds(args.thresholds)),
+                threshold=args.threshold,
                 seeds=_seeds(args.seeds),
                 workers=args.workers,
                 backend=args.backend,

@@ -29,6 +29,8 @@ differs whenever that one does):
 ``codebook``           k-means codebook (k = 32) of those descriptors, the segments' BoW
 ``gpc``                our multi-class Laplace GP classifier trained on 300 synthetic BoW
                        vectors, and its Monte-Carlo class probabilities of 200 test vectors
+``threshold``          the confidence-threshold rule on those probabilities: its grid point
+                       must come out identical on every platform
 ``episode_v1/_v2``     a short oracle sorting episode (cluttered, seed 0, 6 steps) of
                        ``ipbench/Sorting-v1`` / ``-v2``: rewards, statuses, skills, actions
 =====================  ======================================================================
@@ -557,13 +559,20 @@ def _stage_codebook() -> tuple[dict[str, str], dict[str, float]]:
     return parts, summary
 
 
-def _stage_gpc() -> tuple[dict[str, str], dict[str, float]]:
+@cache
+def _gpc_fit():
+    """The synthetic split of the ``gpc`` stage, the GP fitted on it and its test
+    probabilities (one fit for the ``gpc`` and ``threshold`` stages)."""
     from ipbench.perception.gpc import GPCConfig, MulticlassLaplaceGPC
     from ipbench.perception.synthetic import make_split
 
     X, y, X_test, y_test = make_split(300, 200, seed=0)
     gp = MulticlassLaplaceGPC(GPCConfig()).fit(X, y, 5)
-    proba = gp.predict_proba(X_test)
+    return X, y, X_test, y_test, gp, gp.predict_proba(X_test)
+
+
+def _stage_gpc() -> tuple[dict[str, str], dict[str, float]]:
+    X, y, X_test, y_test, gp, proba = _gpc_fit()
     state = gp.get_state()
     parts = {
         "data": digest_arrays(X, y, X_test, y_test),
@@ -578,6 +587,19 @@ def _stage_gpc() -> tuple[dict[str, str], dict[str, float]]:
         "accuracy": float((proba.argmax(axis=1) == y_test).mean()),
         "confidence_mean": float(proba.max(axis=1).mean()),
     }
+    return parts, summary
+
+
+def _stage_threshold() -> tuple[dict[str, str], dict[str, float]]:
+    from ipbench.policies.threshold import choose_threshold
+
+    *_, y_test, _, proba = _gpc_fit()
+    choice = choose_threshold(proba.max(axis=1), proba.argmax(axis=1) == y_test, 0.9)
+    parts = {
+        "fit": digest_arrays(np.array(choice.fit)),
+        "threshold": digest_arrays(choice.threshold),
+    }
+    summary = {"threshold": choice.threshold, "fit_a": choice.fit[0], "fit_b": choice.fit[1]}
     return parts, summary
 
 
@@ -761,6 +783,15 @@ STAGES: dict[str, Stage] = {
                 "accuracy": (0.015, 0.0),
                 "confidence_mean": (0.002, 0.0),
             },
+            cheap=True,
+        ),
+        Stage(
+            "threshold",
+            _stage_threshold,
+            "the threshold rule on those predictions (target precision 0.9): the grid point "
+            "must be identical everywhere",
+            {"threshold": (0.0, 0.0), "fit_a": (0.01, 0.0), "fit_b": (0.01, 0.0)},
+            depends_on=("gpc",),
             cheap=True,
         ),
         *(

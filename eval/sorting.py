@@ -42,6 +42,7 @@ from ipbench.eval.episodes import BACKENDS, open_run, record_episodes, run_episo
 from ipbench.eval.perception import PerceptionEvalConfig, model_key, trained_models
 from ipbench.eval.prepare import prepare_perception
 from ipbench.eval.schedule import longest_first, task_cost
+from ipbench.eval.sorting_curve import write_curve
 from ipbench.eval.sorting_report import (
     ThresholdSweep,
     loss_decomposition,
@@ -55,11 +56,15 @@ from ipbench.policies import (
     POLICY_VERSION,
     READS_INFO,
     NothingToSort,
+    PolicyError,
     PolicyModels,
+    check_policy_name,
     make_policy,
+    policy_classifier,
+    split_policy_name,
 )
 from ipbench.policies.oracle import true_category, true_object
-from ipbench.policies.threshold import ThresholdChoice, choose_threshold
+from ipbench.policies.threshold import RULE, ThresholdChoice, choose_threshold
 
 __all__ = [
     "BACKENDS",
@@ -74,8 +79,9 @@ __all__ = [
 
 EPISODE_VERSION = 2
 """Version of the episode record; part of the run fingerprint."""
-_VALIDATION_PROTOCOL = 2
-"""Version of how threshold evidence is gathered (2: every decision of validation episodes)."""
+_VALIDATION_PROTOCOL = 3
+"""Version of how threshold evidence is gathered (3: every labelled segment of the first view
+of each validation scene, :func:`validation_view`)."""
 
 
 class SortingEvalError(ValueError):
@@ -90,9 +96,13 @@ class SortingEvalConfig:
     ----------
     scenes, policies : names (see ``SCENES`` and :data:`~ipbench.policies.POLICIES`).
     seeds : episode seeds (the same for every policy and scene).
-    validation_seeds : seeds whose episodes choose the thresholds; disjoint from ``seeds``.
-    target_precision : the threshold is the lowest confidence whose labels are at least this
-        often right over the decisions of the validation episodes.
+    validation_seeds : seeds of the validation scenes whose first views choose the thresholds
+        (:func:`validation_view`); disjoint from ``seeds``.
+    target_precision : the threshold is the lowest grid confidence whose labels the
+        calibration fit expects at least this often right over the validation views
+        (:func:`~ipbench.policies.threshold.choose_threshold`).
+    threshold : when set, every confidence-driven policy runs at this threshold instead of
+        the validated one (the operating point a user chooses).
     n_views, fusion : inspection views fused per object, and how.
     steps_per_object : the episode's step limit is this x objects + 10.
     workers : parallel episodes (processes, or Ray tasks).
@@ -113,8 +123,9 @@ class SortingEvalConfig:
     scenes: tuple[str, ...] = ("uncluttered", "cluttered")
     policies: tuple[str, ...] = ("random", "gp-ipm")
     seeds: tuple[int, ...] = tuple(range(30))
-    validation_seeds: tuple[int, ...] = tuple(range(1000, 1008))
+    validation_seeds: tuple[int, ...] = tuple(range(1000, 1040))
     target_precision: float = 0.95
+    threshold: float | None = None
     n_views: int = 3
     fusion: str = "majority"
     steps_per_object: int = 6
@@ -140,15 +151,22 @@ class SortingEvalConfig:
                 "'calibrated'; with 'true' (the released envs) there is none: drop --robot-seed "
                 "or add --extrinsics nominal|calibrated"
             )
-        for kind, names, valid in (
-            ("scene", self.scenes, tuple(SCENES)),
-            ("policy", self.policies, POLICIES),
-        ):
-            if not names:
-                raise SortingEvalError(f"no {kind} given; valid: {', '.join(valid)}")
-            bad = [n for n in names if n not in valid]
-            if bad:
-                raise SortingEvalError(f"unknown {kind} {bad[0]!r}; valid: {', '.join(valid)}")
+        if not self.scenes:
+            raise SortingEvalError(f"no scene given; valid: {', '.join(SCENES)}")
+        bad = [n for n in self.scenes if n not in SCENES]
+        if bad:
+            raise SortingEvalError(f"unknown scene {bad[0]!r}; valid: {', '.join(SCENES)}")
+        if not self.policies:
+            raise SortingEvalError(f"no policy given; valid: {', '.join(POLICIES)}")
+        for name in self.policies:
+            try:
+                check_policy_name(name)
+            except PolicyError as err:
+                raise SortingEvalError(str(err)) from err
+        if len(set(self.policies)) != len(self.policies):
+            raise SortingEvalError(f"policies repeat: {', '.join(self.policies)}; give each once")
+        if self.threshold is not None and not 0.0 <= self.threshold <= 1.0:
+            raise SortingEvalError(f"--threshold must be in [0, 1], got {self.threshold!r}")
         if not self.seeds or any(int(s) < 0 for s in self.seeds):
             raise SortingEvalError(f"seeds must be non-negative integers, got {self.seeds!r}")
         # an episode is keyed by (scene, policy, seed): a repeated seed would run twice and
@@ -239,10 +257,10 @@ class Task:
 
 # -- models and thresholds ---------------------------------------------------------------------
 def _validation_tasks(config: SortingEvalConfig) -> list[Task]:
-    """Random sorting on the validation seeds of both standard scenes (whichever are
-    evaluated: the thresholds stay those released)."""
+    """The validation scenes: both standard scenes (whichever are evaluated: the thresholds
+    stay those released) at every validation seed."""
     return [
-        Task(scene, "random", seed)
+        Task(scene, "validation", seed)
         for scene in SCENES
         if scene in STANDARD_SCENES
         for seed in config.validation_seeds
@@ -250,7 +268,7 @@ def _validation_tasks(config: SortingEvalConfig) -> list[Task]:
 
 
 def _under_test(model, config: SortingEvalConfig) -> PolicyModels:
-    """The models of a validation episode: ``model`` on the table, nothing else."""
+    """The models of a validation scene: ``model`` on the table, nothing else."""
     area = tuple(float(v) for v in workcell_places().inspection_area.center)
     seg, feat = config.perception.dataset.segmentation, config.perception.dataset.features
     return PolicyModels(
@@ -258,10 +276,37 @@ def _under_test(model, config: SortingEvalConfig) -> PolicyModels:
     )
 
 
+def validation_view(task: Task, models: PolicyModels, config: SortingEvalConfig) -> dict:
+    """The labelled first view of one validation scene: ``reset(seed)`` (the layout settles;
+    no grasp, no contact chaos), the scene perceived as every sorter perceives it, each segment
+    with its label, confidence and the category of the object under it (None: background)."""
+    with threadpool_limits(1):
+        dataset = config.perception.dataset
+        env = gym.make(
+            dataset.env_id, scene=task.scene, depth_noise=dataset.sensor, cameras=EVAL_CAMERAS
+        )
+        try:
+            policy = make_policy("random", models, config.n_views, config.fusion)
+            policy.reset(task.seed)
+            obs, info = env.reset(seed=task.seed)
+            detections = policy.perceive_scene(obs)
+        finally:
+            env.close()
+    decisions = [
+        {
+            "first_label": d.label,
+            "first_confidence": round(d.confidence, 4),
+            "true_category": true_category(d.segment.pixels, info),
+        }
+        for d in detections
+    ]
+    return {"scene": task.scene, "seed": task.seed, "decisions": decisions}
+
+
 def _evidence_of(records, tasks: list[Task]) -> tuple[np.ndarray, np.ndarray]:
-    """Confidence and correctness of every decision with ground truth in ``records`` (the
-    episodes of ``tasks``), in task order whatever order the workers finished in: the same
-    evidence file every run."""
+    """Confidence and correctness of every labelled segment in ``records`` (the views of
+    ``tasks``), in task order whatever order the workers finished in: the same evidence file
+    every run."""
     order = {(t.scene, t.seed): i for i, t in enumerate(tasks)}
     conf, correct = [], []
     for record in sorted(records, key=lambda r: order[r["scene"], r["seed"]]):
@@ -275,26 +320,29 @@ def _evidence_of(records, tasks: list[Task]) -> tuple[np.ndarray, np.ndarray]:
 def _validation_evidence(
     model, config: SortingEvalConfig, progress: bool = False
 ) -> tuple[np.ndarray, np.ndarray]:
-    """Confidence and correctness of every decision of random sorting (which uses no
-    threshold) with ``model`` through the validation episodes of both standard scenes.
-
-    Every view a sorter decides on counts, not only an episode's first one: after removals the
-    table holds disturbed, toppled leftovers, where labels of the same confidence are right
-    less often, so thresholds chosen on first views alone let many wrong later labels
-    through. (From an empty cache the episodes run in the preparation pool instead:
-    :func:`_validation_episode`.)"""
+    """Confidence and correctness of every labelled segment of the validation scenes' first
+    views, classified by ``model`` (from an empty cache the views are taken in the
+    preparation pool instead: :func:`_validation_scene`)."""
     tasks = _validation_tasks(config)
     config = config.validation_config()
-    records = _executor(config)(tasks, _under_test(model, config), config)
-    bar = tqdm(records, total=len(tasks), desc="validation episodes", disable=not progress)
+    records = run_episodes(
+        validation_view,
+        tasks,
+        (_under_test(model, config), config),
+        workers=config.workers,
+        backend=config.backend,
+        ray_address=config.ray_address,
+        error=SortingEvalError,
+    )
+    bar = tqdm(records, total=len(tasks), desc="validation scenes", disable=not progress)
     return _evidence_of(list(bar), tasks)
 
 
 _VALIDATION_MODELS: dict = {}  # in a preparation worker: the last models it validated
 
 
-def _validation_episode(cache: Path, classifier: str, config: SortingEvalConfig, task: Task):
-    """One validation episode in a worker of :func:`ipbench.eval.prepare.prepare_perception`,
+def _validation_scene(cache: Path, classifier: str, config: SortingEvalConfig, task: Task):
+    """One validation view in a worker of :func:`ipbench.eval.prepare.prepare_perception`,
     with the table-top ``classifier`` model read from ``cache`` (loaded once per worker;
     mapped, so it costs a fraction of a second)."""
     key = (str(cache), classifier, config.perception)
@@ -304,7 +352,7 @@ def _validation_episode(cache: Path, classifier: str, config: SortingEvalConfig,
         )[classifier]
         _VALIDATION_MODELS.clear()
         _VALIDATION_MODELS[key] = _under_test(model, config)
-    return run_episode(task, _VALIDATION_MODELS[key], config.validation_config())
+    return validation_view(task, _VALIDATION_MODELS[key], config.validation_config())
 
 
 @dataclass(frozen=True)
@@ -316,13 +364,8 @@ class _Keyed:
 
 def _validation_key(model, config: SortingEvalConfig) -> list:
     """What the validation evidence of ``model`` (anything with its ``key``) depends on."""
-    return [
-        model.key,
-        list(config.validation_seeds),
-        config.steps_per_object,
-        _VALIDATION_PROTOCOL,
-        POLICY_VERSION,
-    ]  # (no cell: validation runs in the released cell, SortingEvalConfig.validation_config)
+    # no cell: validation runs in the released cell (SortingEvalConfig.validation_config)
+    return [model.key, list(config.validation_seeds), _VALIDATION_PROTOCOL, POLICY_VERSION]
 
 
 def _cache_path(cache: Path, kind: str, classifier: str, parts: list) -> Path:
@@ -344,9 +387,9 @@ def _evidence(
     progress: bool,
     records: list | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
-    """:func:`_validation_evidence`, cached: it does not depend on the target precision, so a
-    sweep over targets runs the validation episodes once; ``records``: those episodes, run
-    already (in the preparation pool)."""
+    """:func:`_validation_evidence`, cached: it does not depend on the target precision or the
+    rule, so a sweep over targets takes the validation views once; ``records``: those views,
+    taken already (in the preparation pool)."""
     path = _cache_path(cache, "evidence", classifier, _validation_key(model, config))
     if path.exists():
         try:
@@ -366,7 +409,7 @@ def _evidence(
 
 
 def _threshold_path(cache: Path, model, classifier: str, config: SortingEvalConfig) -> Path:
-    key = [*_validation_key(model, config), config.target_precision]
+    key = [*_validation_key(model, config), config.target_precision, RULE]
     return _cache_path(cache, "threshold", classifier, key)
 
 
@@ -384,7 +427,7 @@ def _threshold(
     progress: bool = False,
     records: list | None = None,
 ) -> ThresholdChoice:
-    """The threshold chosen for ``model`` on the validation episodes (``records``: run
+    """The threshold chosen for ``model`` on the validation views (``records``: taken
     already), saved in ``cache``."""
     path = _threshold_path(cache, model, classifier, config)
     if path.exists():
@@ -397,8 +440,11 @@ def _threshold(
                 np.array(d["thresholds"], float),
                 np.array(d["precision"], float),
                 np.array(d["inspected"], float),
+                np.array(d["fitted_precision"], float),
+                (float(d["fit"][0]), float(d["fit"][1])),
+                str(d["rule"]),
             )
-        except (ValueError, KeyError, TypeError) as err:
+        except (ValueError, KeyError, TypeError, IndexError) as err:
             print(f"ipbench: threshold file {path} is corrupt ({err}); choosing again")
     conf, correct = _evidence(cache, model, classifier, config, progress, records)
     choice = choose_threshold(conf, correct, config.target_precision)
@@ -413,7 +459,7 @@ def prepare_models(
     cache: Path, config: SortingEvalConfig, progress: bool = False
 ) -> tuple[PolicyModels, dict[str, ThresholdChoice]]:
     """Trained models and validated thresholds for ``config.policies`` (cached in ``cache``;
-    ``progress``: a bar over the validation episodes when a threshold must be chosen)."""
+    ``progress``: a bar over the validation views when a threshold must be chosen)."""
     cache = Path(cache)
     try:
         cache.mkdir(parents=True, exist_ok=True)
@@ -424,16 +470,11 @@ def prepare_models(
         ) from err
     # the table-top models: the GP (every policy perceives with it) and each interactive
     # policy's classifier
-    wanted = ("gp",) + tuple(
-        sorted({INTERACTIVE[p][0] for p in config.policies if p in INTERACTIVE} - {"gp"})
-    )
-    in_hand = tuple(
-        sorted(
-            {c for p, (c, mode) in INTERACTIVE.items() if p in config.policies and mode == "hand"}
-        )
-    )
-    needed = sorted({INTERACTIVE[p][0] for p in config.policies if p in INTERACTIVE})
-    # validation episodes still to run go into the same pool (not with Ray: they run there)
+    inspecting = [c for p in config.policies if (c := policy_classifier(p)) is not None]
+    needed = sorted({classifier for classifier, _ in inspecting})
+    wanted = ("gp",) + tuple(c for c in needed if c != "gp")
+    in_hand = tuple(sorted({classifier for classifier, mode in inspecting if mode == "hand"}))
+    # validation views still to take go into the same pool (not with Ray: they run there)
     pending = [
         c
         for c in needed
@@ -443,15 +484,15 @@ def prepare_models(
         )
     ]
     validation = _validation_tasks(config)
-    # the views, the models and the validation episodes from an empty cache in one pool
-    # (ipbench.eval.prepare): the episodes run while the in-hand models train
+    # the views, the models and the validation scenes from an empty cache in one pool
+    # (ipbench.eval.prepare): the scenes are taken while the in-hand models train
     ran = prepare_perception(
         cache,
         config.perception,
         (("scene", wanted), ("in_hand", in_hand)),
         config.workers,
         progress,
-        then=[(_validation_episode, cache, c, config, t) for c in pending for t in validation],
+        then=[(_validation_scene, cache, c, config, t) for c in pending for t in validation],
     )
     records = {
         c: ran[k * len(validation) : (k + 1) * len(validation)] for k, c in enumerate(pending)
@@ -479,6 +520,44 @@ def prepare_models(
         features=config.perception.dataset.features,
     )
     return policy_models, choices
+
+
+def validation_source(config: SortingEvalConfig) -> str:
+    """In words, the data the thresholds are chosen on."""
+    scenes = ", ".join(s for s in SCENES if s in STANDARD_SCENES)
+    seeds = config.validation_seeds
+    return (
+        f"every labelled segment of the first view (after reset, before any grasp) of the "
+        f"{scenes} scenes at validation seeds {min(seeds)}-{max(seeds)} ({len(seeds)} each)"
+    )
+
+
+def threshold_record(choice: ThresholdChoice, config: SortingEvalConfig) -> dict:
+    """What ``run.json`` records of a validated threshold: the value, the rule and its data."""
+    return {
+        "threshold": choice.threshold,
+        "rule": choice.rule,
+        "target_precision": choice.target_precision,
+        "fit": list(choice.fit),
+        "decisions": choice.n,
+        "data": validation_source(config),
+        "used": config.threshold is None,
+    }
+
+
+def expand_thresholds(policies: tuple[str, ...], thresholds: tuple[float, ...]) -> tuple[str, ...]:
+    """``policies`` with each plain confidence-driven one (``gp-ipm``) replaced by one policy per
+    threshold (``gp-ipm@0.5``, ``gp-ipm@1.0``, ...; same seeds, paired); the others as given."""
+    if not thresholds:
+        return tuple(policies)
+    out: list[str] = []
+    for name in policies:
+        base, value = split_policy_name(name)
+        if base in INTERACTIVE and value is None:
+            out += [f"{base}@{float(t)}" for t in thresholds]
+        else:
+            out.append(name)
+    return tuple(dict.fromkeys(out))
 
 
 # -- one episode --------------------------------------------------------------------------------
@@ -585,7 +664,7 @@ def _run_episode(task: Task, models: PolicyModels, config: SortingEvalConfig) ->
 # -- executors ------------------------------------------------------------------------------------
 def _cost(task: Task) -> float:
     """Expected relative wall time of a task (longest first, :mod:`ipbench.eval.schedule`)."""
-    return task_cost(SCENES[task.scene].n_objects, task.policy)
+    return task_cost(SCENES[task.scene].n_objects, split_policy_name(task.policy)[0])
 
 
 def _longest_first(tasks: list[Task]) -> list[Task]:
@@ -623,6 +702,8 @@ def run_sorting_eval(
     """Run (or resume) the evaluation into ``out``; returns the summary."""
     out = Path(out)
     models, choices = prepare_models(cache, config, progress=progress)
+    if config.threshold is not None:  # the user's operating point, for every classifier
+        models = replace(models, thresholds={c: float(config.threshold) for c in models.thresholds})
     keys = {
         name: None if getattr(models, name) is None else getattr(models, name).key
         for name in ("gp", "svm", "gp_hand", "svm_hand")
@@ -637,6 +718,9 @@ def run_sorting_eval(
         {
             "policy_version": POLICY_VERSION,
             "thresholds": models.thresholds,
+            "validated_thresholds": {
+                c: threshold_record(ch, config) for c, ch in sorted(choices.items())
+            },
             "model_keys": keys,
             "perception_key": model_key(config.perception, CATEGORIES),
             "config": asdict(config),
@@ -683,10 +767,14 @@ def run_sorting_eval(
             accuracy=np.nan_to_num(c.precision, nan=1.0),
             inspected_fraction=c.inspected,
             chosen=c.threshold,
-            source=f"{c.n} decisions of random sorting in validation seeds "
-            f"{min(config.validation_seeds)}-{max(config.validation_seeds)} (both scenes): "
-            "accuracy of the labels at or above the threshold, and the fraction below it "
-            f"(inspected); the chosen threshold is the lowest reaching {c.target_precision:.0%}",
+            source=f"The GP's {c.n} labelled segments of {validation_source(config)}: accuracy "
+            "of the labels at or above the threshold (as counted, and under the logistic "
+            "calibration fit the rule reads), and the fraction below it (inspected); the "
+            f"validated threshold is the lowest on a 0.05 grid whose fitted accuracy reaches "
+            f"{c.target_precision:.0%}"
+            + ("." if config.threshold is None else f"; this run uses {config.threshold}."),
+            fitted=np.nan_to_num(c.fitted_precision, nan=1.0),
         )
-    write_report(episodes, out, sweep)
+    curve = write_curve(episodes, out)
+    write_report(episodes, out, sweep, sections=curve["lines"])
     return json.loads((out / "summary.json").read_text())

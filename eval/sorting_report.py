@@ -282,6 +282,9 @@ def _policy_summary(runs: Sequence[Mapping]) -> dict:
         "objects": objects,
         "correct": sum(int(ep["correct"]) for ep in runs),
         "inspections_mean": float(np.mean([ep["inspections"] for ep in runs])),
+        "inspections_per_object": (
+            sum(int(ep["inspections"]) for ep in runs) / objects if objects else 0.0
+        ),
         "grasp_failures_mean": float(np.mean([ep["grasp_failures"] for ep in runs])),
         "wall_time_s_mean": float(np.mean([ep["wall_time_s"] for ep in runs])),
         "sim_time_s_mean": float(np.mean([ep["sim_time_s"] for ep in runs])),
@@ -312,6 +315,7 @@ def summarize(episodes: Sequence[Mapping]) -> dict[str, dict[str, dict]]:
         alphabetical order) with keys ``accuracy_mean, ci_low, ci_high`` (per-seed accuracy,
         fraction in ``[0, 1]``: mean and 95 % bootstrap interval), ``n`` (seeds), ``seeds``,
         ``objects`` and ``correct`` (summed over seeds), ``inspections_mean``,
+        ``inspections_per_object`` (inspections / objects, pooled over seeds),
         ``grasp_failures_mean`` (per episode), ``wall_time_s_mean``, ``sim_time_s_mean``
         (s per episode), ``truncated`` (episodes cut by the step limit), ``dropped``,
         ``wrong_bin``, ``left`` (objects, summed over seeds), ``dropped_fraction`` (dropped
@@ -351,6 +355,8 @@ class ThresholdSweep:
     inspected_fraction : (k,) fraction of decisions that inspected, in ``[0, 1]``.
     chosen : the threshold the policy uses.
     source : a sentence saying what data the sweep comes from.
+    fitted : (k,) the accuracy the threshold rule reads (e.g. under a calibration fit), or
+        None.
     """
 
     thresholds: np.ndarray
@@ -358,6 +364,7 @@ class ThresholdSweep:
     inspected_fraction: np.ndarray
     chosen: float
     source: str
+    fitted: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         arrays = {
@@ -376,6 +383,11 @@ class ThresholdSweep:
         for name, a in arrays.items():
             object.__setattr__(self, name, a)
         object.__setattr__(self, "chosen", float(self.chosen))
+        if self.fitted is not None:
+            fitted = np.asarray(self.fitted, float)
+            if fitted.shape != k:
+                raise ValueError(f"ThresholdSweep.fitted needs shape {k}, got {fitted.shape}")
+            object.__setattr__(self, "fitted", fitted)
 
 
 @dataclass(frozen=True)
@@ -480,6 +492,8 @@ def _sweep_png(path: Path, sweep: ThresholdSweep) -> None:
     fig = Figure(figsize=(4.6, 3.4), dpi=_DPI)
     ax = fig.subplots()
     ax.plot(t, 100 * sweep.accuracy[order], "o-", ms=3, label="accuracy")
+    if sweep.fitted is not None:
+        ax.plot(t, 100 * sweep.fitted[order], "-", lw=1, label="accuracy, fitted")
     ax.plot(t, 100 * sweep.inspected_fraction[order], "s--", ms=3, label="inspected")
     ax.axvline(sweep.chosen, color="k", lw=1, ls=":", label=f"chosen {sweep.chosen:.2f}")
     ax.set_xlabel("inspection threshold (confidence)")
@@ -666,6 +680,7 @@ def write_report(
     out: Path,
     threshold_sweep: ThresholdSweep | None = None,
     title: str = "Interactive sorting: objects in the right bin",
+    sections: Sequence[str] = (),
 ) -> ReportPaths:
     """Write ``summary.json``, ``sorting.md`` and the PNGs into ``out`` (created if needed).
 
@@ -675,6 +690,8 @@ def write_report(
     out : report folder.
     threshold_sweep : if given, ``threshold_sweep.png`` and its paragraph are added.
     title : the markdown's first heading.
+    sections : markdown lines added after the scenes' tables (e.g. the accuracy-inspection
+        curve, :mod:`ipbench.eval.sorting_curve`).
 
     Returns
     -------
@@ -706,6 +723,7 @@ def write_report(
             lines += [f"{truncated} episode(s) stopped at the step limit (truncated).", ""]
         lines += _paired_lines(scene, runs[scene], by_policy)
         lines += _losses_lines(by_policy)
+    lines += [*sections]
     lines += ["## Plots", "", "![accuracy by policy](accuracy_by_policy.png)", ""]
     points = _inspect_decisions(episodes)
     if points:

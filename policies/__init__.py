@@ -1,8 +1,12 @@
 """Sorting policies: random sorting, GP-IPM (in hand / in the inspection area), SVM-IPM,
-deep-IPM (the GP-IPM loop on a PointNet deep ensemble's confidences), the oracle, and the
-scripted ground-truth sorter of the demo.
+deep-IPM (the GP-IPM loop on a PointNet deep ensemble's confidences), the two inspection
+references (``oracle-inspect``, ``random-inspect@P``), the oracle, and the scripted
+ground-truth sorter of the demo.
 
-:func:`make_policy` builds one by name from the trained perception models.
+:func:`make_policy` builds one by name from the trained perception models. A confidence-driven
+policy (:data:`INTERACTIVE`) runs at its validated threshold under its plain name and at a
+threshold ``T`` of the user's as ``name@T`` (``gp-ipm@0.8``); ``random-inspect@P`` inspects a
+fraction ``P`` of the objects (:func:`split_policy_name`).
 """
 
 from __future__ import annotations
@@ -16,6 +20,7 @@ from ipbench.perception.pointnet import PointNetEnsemble
 from ipbench.perception.segmentation import DEFAULT_SEGMENTATION, SegmentationConfig
 from ipbench.policies.base import Decision, NothingToSort, Policy, PolicyError
 from ipbench.policies.fusion import FUSIONS
+from ipbench.policies.inspection_references import OracleInspectSorter, RandomInspectSorter
 from ipbench.policies.interactive import InteractiveConfig, InteractiveSorter
 from ipbench.policies.oracle import OracleSorter
 from ipbench.policies.perceiver import Detection, Perceiver
@@ -24,6 +29,7 @@ from ipbench.policies.random_sorting import RandomSorter
 __all__ = [
     "EVAL_CAMERAS",
     "FUSIONS",
+    "INSPECTING",
     "INTERACTIVE",
     "POLICIES",
     "POLICY_VERSION",
@@ -34,7 +40,10 @@ __all__ = [
     "PolicyError",
     "PolicyModels",
     "READS_INFO",
+    "check_policy_name",
     "make_policy",
+    "policy_classifier",
+    "split_policy_name",
 ]
 
 POLICIES: tuple[str, ...] = (
@@ -43,10 +52,13 @@ POLICIES: tuple[str, ...] = (
     "gp-ipm-area",
     "svm-ipm",
     "deep-ipm",
+    "oracle-inspect",
+    "random-inspect",
     "oracle",
     "oracle-scene",
 )
-"""Policy names of the benchmark."""
+"""Policy names of the benchmark (``random-inspect`` only with its fraction,
+``random-inspect@P``)."""
 POLICY_VERSION = 3
 """Version of what the policies do with an observation (perception, grasp planning, decision
 rules), for every env version: part of an evaluation run's fingerprint and of its cached
@@ -55,7 +67,7 @@ threshold evidence, so a run or a cache from other policy code is never mixed wi
 short round objects centred on their rim circle. 3: area inspection (``gp-ipm-area``) aims
 every command after the first at the object where the area view shows it (its grasp planned
 there), not at its old place on the table, which a failed re-pick from the area grasped."""
-READS_INFO: frozenset[str] = frozenset({"oracle", "oracle-scene"})
+READS_INFO: frozenset[str] = frozenset({"oracle", "oracle-scene", "oracle-inspect"})
 """The policies that read ``info`` (ground truth): ``act(observation, info)``."""
 EVAL_CAMERAS: tuple[str, ...] = ("wrist",)
 """The cameras the policies of :data:`POLICIES` read (``observation["wrist_*"]`` and ``qpos``;
@@ -70,6 +82,55 @@ INTERACTIVE: dict[str, tuple[str, str]] = {
 }
 """The interactive policies: name -> (classifier, inspection mode, see
 :data:`~ipbench.policies.interactive.INSPECTIONS`)."""
+INSPECTING: dict[str, tuple[str, str]] = {
+    **INTERACTIVE,
+    "oracle-inspect": ("gp", "hand"),
+    "random-inspect": ("gp", "hand"),
+}
+"""Every policy that inspects: name -> (classifier, inspection mode); the two references run
+the GP-IPM loop with the GP's labels."""
+
+
+def split_policy_name(name: str) -> tuple[str, float | None]:
+    """``"gp-ipm@0.8"`` -> ``("gp-ipm", 0.8)``; a plain name -> ``(name, None)``. Raises
+    :class:`PolicyError` for a name that is not one of :data:`POLICIES`, an ``@`` on a policy
+    that takes no value, a value outside [0, 1], or ``random-inspect`` without its fraction."""
+    base, at, value = name.partition("@")
+    if base not in POLICIES:
+        raise PolicyError(f"unknown policy {name!r}; valid: {', '.join(POLICIES)}")
+    takes = (*INTERACTIVE, "random-inspect")
+    if not at:
+        if base == "random-inspect":
+            raise PolicyError(
+                "random-inspect needs the fraction of objects it inspects: random-inspect@P, "
+                "P in [0, 1] (e.g. random-inspect@0.3)"
+            )
+        return base, None
+    if base not in takes:
+        raise PolicyError(
+            f"policy {base!r} takes no @value; thresholds (name@T) go with "
+            f"{', '.join(INTERACTIVE)}, fractions with random-inspect@P"
+        )
+    try:
+        number = float(value)
+    except ValueError:
+        number = float("nan")
+    if not 0.0 <= number <= 1.0:
+        raise PolicyError(
+            f"{name!r}: the value after @ must be a number in [0, 1], e.g. {base}@0.5"
+        )
+    return base, number
+
+
+def check_policy_name(name: str) -> str:
+    """``name`` if it names a policy (:func:`split_policy_name`), else :class:`PolicyError`."""
+    split_policy_name(name)
+    return name
+
+
+def policy_classifier(name: str) -> tuple[str, str] | None:
+    """(classifier, inspection mode) of an inspecting policy (``name@T`` included), else None."""
+    return INSPECTING.get(split_policy_name(name)[0])
 
 
 @dataclass(frozen=True)
@@ -119,21 +180,32 @@ def make_policy(
             hand_model=getattr(models, f"{what}_hand"),
         )
 
-    def interactive(classifier: str, inspection: str) -> InteractiveSorter:
-        if classifier not in models.thresholds:
-            raise PolicyError(f"policy {name!r} needs thresholds[{classifier!r}]")
-        config = InteractiveConfig(
-            threshold=models.thresholds[classifier],
-            inspection=inspection,
-            n_views=n_views,
-            fusion=fusion,
-        )
-        return InteractiveSorter(perceiver(getattr(models, classifier), classifier), config, name)
+    base, value = split_policy_name(name)
 
-    if name == "random":
+    def config(classifier: str, inspection: str, threshold: float | None) -> InteractiveConfig:
+        if threshold is None:
+            if classifier not in models.thresholds:
+                raise PolicyError(f"policy {name!r} needs thresholds[{classifier!r}]")
+            threshold = models.thresholds[classifier]
+        return InteractiveConfig(
+            threshold=threshold, inspection=inspection, n_views=n_views, fusion=fusion
+        )
+
+    if base == "random":
         return RandomSorter(perceiver(models.gp, "gp"), name)
-    if name in ("oracle", "oracle-scene"):
+    if base in ("oracle", "oracle-scene"):
         return OracleSorter(perceiver(models.gp, "gp"), name, name == "oracle", commands)
-    if name in INTERACTIVE:
-        return interactive(*INTERACTIVE[name])
-    raise PolicyError(f"unknown policy {name!r}; valid: {', '.join(POLICIES)}")
+    classifier, inspection = INSPECTING[base]
+    if base == "oracle-inspect":  # the threshold is never read: the truth decides
+        return OracleInspectSorter(
+            perceiver(models.gp, "gp"), config(classifier, inspection, 1.0), name
+        )
+    if base == "random-inspect":
+        return RandomInspectSorter(
+            perceiver(models.gp, "gp"), value, config(classifier, inspection, 1.0), name
+        )
+    return InteractiveSorter(
+        perceiver(getattr(models, classifier), classifier),
+        config(classifier, inspection, value),
+        name,
+    )

@@ -26,7 +26,7 @@ from ipbench.policies.base import (
 )
 from ipbench.policies.fusion import FUSIONS, fuse
 from ipbench.policies.grasping import GraspTarget, grasp_target
-from ipbench.policies.perceiver import Perceiver
+from ipbench.policies.perceiver import Detection, Perceiver
 
 __all__ = ["INSPECTIONS", "InteractiveConfig", "InteractiveSorter"]
 
@@ -41,7 +41,8 @@ class InteractiveConfig:
 
     Attributes
     ----------
-    threshold : confidence at or above which an object is sorted without inspection.
+    threshold : confidence at or above which an object is sorted without inspection (0: never
+        inspect, 1: inspect everything short of certainty).
     inspection : ``"hand"`` or ``"area"``.
     n_views : inspection views fused per object (thesis: at least 3).
     turn_deg : rotation between inspection views (deg; thesis: 30).
@@ -94,13 +95,20 @@ class InteractiveSorter(SceneSorter):
         self.config = config
         self.name = name
         self._inspection: _Inspection | None = None
+        self._info: dict | None = None
 
     def reset(self, seed: int | None = None) -> None:
         super().reset(seed)
         self._inspection = None
 
+    def inspects(self, detection: Detection, info: dict | None) -> bool:
+        """Whether ``detection`` (the object just chosen) is inspected: its confidence is below
+        the threshold (at threshold 1, every object is)."""
+        return self.config.threshold >= 1.0 or detection.confidence < self.config.threshold
+
     def act(self, observation: dict, info: dict | None = None) -> dict:
         self._steps += 1
+        self._info = info
         if self._inspection is not None:
             return self._continue_inspection(observation)
         detections = self.candidates(self.perceive_scene(observation))
@@ -111,7 +119,7 @@ class InteractiveSorter(SceneSorter):
         decision = self.begin(best)
         target = self.target(best)
         self.grasp(target)
-        if best.confidence >= self.config.threshold:
+        if not self.inspects(best, info):
             return place_action(target, best.label)
         decision.kind = "inspect"
         self._inspection = _Inspection(decision, target, [], [])
@@ -132,7 +140,7 @@ class InteractiveSorter(SceneSorter):
         if not holding:  # nothing in hand: the observation shows the table again
             self._inspection = None
             self._steps -= 1
-            return self.act(observation)
+            return self.act(observation, self._info)
         self._last_target = None  # the grasp worked
         self.detections = [detection] if detection is not None else []
         if detection is not None:

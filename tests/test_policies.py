@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import importlib
 
 import numpy as np
@@ -22,7 +23,6 @@ from ipbench.policies.grasping import (
 from ipbench.policies.interactive import InteractiveConfig, InteractiveSorter
 from ipbench.policies.perceiver import Detection
 from ipbench.policies.scripted import OPENING_MARGIN, TOP_MARGIN
-from ipbench.policies.threshold import choose_threshold
 
 CLASSES = ("juice_bottle", "milk_carton", "bowl", "mug", "juice_box")
 
@@ -65,17 +65,6 @@ def test_bayes_fusion_is_the_normalised_product() -> None:
     assert label == 0 and conf == pytest.approx(expected[0])
     with pytest.raises(FusionError, match="majority, bayes"):
         fuse(views, "average")
-
-
-def test_threshold_is_the_lowest_reaching_the_target_precision() -> None:
-    conf = np.array([0.3, 0.4, 0.5, 0.6, 0.7, 0.8, 0.9, 0.95])
-    correct = np.array([False, False, True, False, True, True, True, True])
-    choice = choose_threshold(conf, correct, target_precision=1.0)
-    assert choice.threshold == pytest.approx(0.61)  # above 0.6: all right
-    assert choice.inspected[np.searchsorted(choice.thresholds, 0.61)] == pytest.approx(0.5)
-    assert choose_threshold(conf, np.zeros(8, bool), 0.9).threshold == 1.0  # inspect all
-    with pytest.raises(PolicyError):
-        choose_threshold(conf, correct[:3])
 
 
 def _segment(center, extent, yaw=0.0, top=0.95, height=0.2) -> Segment:
@@ -311,3 +300,94 @@ def test_in_hand_views_are_classified_by_the_in_hand_model(monkeypatch) -> None:
     other = PerceptionModel(CLASSES[:3], codebook, _FixedClassifier(0), "three")
     with pytest.raises(PerceptionError, match="train both for the same classes"):
         Perceiver(table, np.zeros(3), hand_model=other)
+
+
+def _truth(categories: list[str]) -> dict:
+    """``info`` of a scene whose object k covers the pixels of the k-th fake detection."""
+    mask = np.full(1000, -1)
+    for k in range(len(categories)):
+        mask[100 * k : 100 * k + 50] = k
+    return {"wrist_mask": mask, "objects": {k: {"category": c} for k, c in enumerate(categories)}}
+
+
+class _TruthPerceiver(_FakePerceiver):
+    """The fake scene with each detection on pixels of its own (100 k .. 100 k + 49)."""
+
+    def scene(self, observation):
+        out = []
+        for k, d in enumerate(super().scene(observation)):
+            seg = dataclasses.replace(d.segment, pixels=np.arange(50) + 100 * k)
+            out.append(Detection(seg, d.probs, d.classes, d.viewpoint, d.inspected))
+        return out
+
+
+@pytest.mark.parametrize(
+    ("truth", "inspected"), [(["mug", "bowl"], False), (["juice_box", "bowl"], True)]
+)
+def test_oracle_inspect_inspects_exactly_the_objects_whose_first_label_is_wrong(
+    truth, inspected
+) -> None:
+    confident_mug = [0.02, 0.02, 0.02, 0.92, 0.02]  # the first chosen, whatever its truth
+    unsure_bowl = [0.2, 0.2, 0.3, 0.1, 0.2]
+    perceiver = _TruthPerceiver([confident_mug, unsure_bowl], [[0, 0, 0, 0, 1.0]] * 3)
+    policy = make_reference("oracle-inspect", perceiver)
+    policy.reset(0)
+    action = policy.act({"qpos": None}, _truth(truth))
+    assert (action["command"] == 2) is inspected
+    assert policy.decisions[0].kind == ("inspect" if inspected else "place")
+    with pytest.raises(PolicyError, match="ground truth"):
+        make_reference("oracle-inspect", perceiver).act({"qpos": None}, None)
+
+
+def make_reference(name: str, perceiver, fraction: float = 0.5):
+    from ipbench.policies.inspection_references import OracleInspectSorter, RandomInspectSorter
+
+    if name == "oracle-inspect":
+        return OracleInspectSorter(perceiver)
+    return RandomInspectSorter(perceiver, fraction)
+
+
+@pytest.mark.parametrize("fraction", [0.0, 0.3, 1.0])
+def test_random_inspect_inspects_about_its_fraction_and_is_seeded(fraction) -> None:
+    perceiver = _FakePerceiver([[0.9, 0.05, 0.05, 0, 0]], [])
+    policy = make_reference("random-inspect", perceiver, fraction)
+    det = perceiver.scene(None)[0]  # a confident object: confidence plays no part
+
+    def draws(seed: int) -> np.ndarray:
+        policy.reset(seed)
+        return np.array([policy.inspects(det, None) for _ in range(2000)])
+
+    first = draws(7)
+    assert first.mean() == pytest.approx(fraction, abs=0.03)
+    np.testing.assert_array_equal(draws(7), first)
+    if 0 < fraction < 1:
+        assert not np.array_equal(draws(8), first)
+    with pytest.raises(PolicyError, match=r"in \[0, 1\]"):
+        make_reference("random-inspect", perceiver, 1.5)
+
+
+@pytest.mark.parametrize(("threshold", "inspects"), [(0.0, False), (0.95, True), (1.0, True)])
+def test_the_threshold_decides_which_objects_are_inspected(threshold, inspects) -> None:
+    perceiver = _FakePerceiver([[0.9, 0.05, 0.05, 0, 0]], [])
+    policy = InteractiveSorter(perceiver, InteractiveConfig(threshold=threshold))
+    policy.reset(0)
+    assert (policy.act({"qpos": None})["command"] == 2) is inspects
+
+
+def test_policy_names_carry_thresholds_and_fractions() -> None:
+    from ipbench.policies import policy_classifier, split_policy_name
+
+    assert split_policy_name("gp-ipm@0.85") == ("gp-ipm", 0.85)
+    assert split_policy_name("random-inspect@0.3") == ("random-inspect", 0.3)
+    assert split_policy_name("oracle-inspect") == ("oracle-inspect", None)
+    assert policy_classifier("svm-ipm@0.5") == ("svm", "hand")
+    assert policy_classifier("random") is None
+    for bad, message in [
+        ("random-inspect", "needs the fraction"),
+        ("oracle@0.5", "takes no @value"),
+        ("gp-ipm@high", r"number in \[0, 1\]"),
+        ("gp-ipm@1.5", r"number in \[0, 1\]"),
+        ("greedy@0.5", "unknown policy"),
+    ]:
+        with pytest.raises(PolicyError, match=message):
+            split_policy_name(bad)

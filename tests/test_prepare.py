@@ -118,11 +118,11 @@ def test_models_prepared_in_one_pool_equal_those_of_one_stage_after_the_other(tm
                 np.testing.assert_array_equal(a[k], b[k], err_msg=f"{condition}: {k}")
 
 
-def test_validation_episodes_in_the_pool_give_the_evidence_of_a_pool_of_their_own(
+def test_validation_views_in_the_pool_give_the_evidence_of_a_pool_of_their_own(
     tmp_path, monkeypatch
 ):
-    """From an empty cache the threshold's validation episodes run in the preparation pool
-    (:func:`ipbench.eval.sorting._validation_episode`); the evidence is what the separate
+    """From an empty cache the threshold's validation views are taken in the preparation pool
+    (:func:`ipbench.eval.sorting._validation_scene`); the evidence is what the separate
     validation pool gathers with the same model."""
     import json
 
@@ -141,7 +141,7 @@ def test_validation_episodes_in_the_pool_give_the_evidence_of_a_pool_of_their_ow
     separate = sorting._validation_evidence
 
     def refuse(*args, **kwargs):
-        raise AssertionError("the validation episodes ran in a pool of their own")
+        raise AssertionError("the validation views were taken in a pool of their own")
 
     monkeypatch.setattr(sorting, "_validation_evidence", refuse)
     models, choices = sorting.prepare_models(tmp_path, config)

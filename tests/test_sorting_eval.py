@@ -19,6 +19,8 @@ from ipbench.eval.sorting import SortingEvalConfig, SortingEvalError, Task, run_
 from ipbench.policies import POLICIES, PolicyModels
 from ipbench.policies.threshold import choose_threshold
 
+RUNNABLE = [p if p != "random-inspect" else "random-inspect@0.5" for p in POLICIES] + ["gp-ipm@1.0"]
+"""Every policy, the one that needs its fraction with one, and a policy at a threshold."""
 FAST = SortingEvalConfig(scenes=("uncluttered",), seeds=(0,), steps_per_object=1)
 """Step limit = objects + 10: short episodes that still sort most of a scene."""
 
@@ -47,7 +49,7 @@ RECORD_KEYS = {
 }  # fmt: skip
 
 
-@pytest.mark.parametrize("policy", POLICIES)
+@pytest.mark.parametrize("policy", RUNNABLE)
 def test_every_policy_runs_an_episode_to_its_end(policy: str, models) -> None:
     record = sorting.run_episode(Task("uncluttered", policy, 1), models, FAST)
     assert set(record) == RECORD_KEYS
@@ -63,7 +65,7 @@ def test_every_policy_runs_an_episode_to_its_end(policy: str, models) -> None:
 
 
 def test_longest_episodes_are_scheduled_first_in_a_fixed_order() -> None:
-    tasks = [Task(scene, policy, s) for scene in SCENES for policy in POLICIES for s in (0, 1)]
+    tasks = [Task(scene, policy, s) for scene in SCENES for policy in RUNNABLE for s in (0, 1)]
     order = sorting._longest_first(tasks)
     assert order == sorting._longest_first(list(tasks)) and set(order) == set(tasks)
     first, last = order[0], order[-1]
@@ -121,7 +123,8 @@ def test_an_interrupted_evaluation_resumes_without_repeating(tmp_path, prepared,
     assert keys == sorted(keys) and len(keys) == 4  # the finished log, in canonical order
     assert summary["uncluttered"]["random"]["n"] == 2
     assert {"accuracy_mean", "ci_low", "ci_high", "n"} <= set(summary["uncluttered"]["gp-ipm"])
-    assert (tmp_path / "sorting.md").read_text().count("| random |") == 1
+    tables = (tmp_path / "sorting.md").read_text().split("## Accuracy against")[0]
+    assert tables.count("| random |") == 1  # one row of the scene's table
     calls.clear()
     run_sorting_eval(tmp_path, tmp_path / "cache", config, progress=False)
     assert calls == []  # all done: nothing runs again
@@ -185,28 +188,23 @@ def test_an_unwritable_output_folder_is_reported(tmp_path, prepared) -> None:
         run_sorting_eval(blocker / "out", tmp_path / "cache", FAST, progress=False)
 
 
-def test_threshold_evidence_is_every_decision_of_random_validation_episodes(models, monkeypatch):
+def test_threshold_evidence_is_every_labelled_segment_of_the_validation_views(models, monkeypatch):
     from ipbench.envs.layout import SCENES
 
     monkeypatch.setattr(sorting, "SCENES", {"uncluttered": SCENES["uncluttered"]})
-    records = []
-    real = sorting._executor
+    config = replace(FAST, validation_seeds=(1000,))
+    from ipbench.envs.sorting import SortingEnv
 
-    def spy(config):
-        def run(tasks, models_, config_):
-            for record in real(config)(tasks, models_, config_):
-                records.append(record)
-                yield record
+    def no_step(self, action):
+        raise AssertionError("a validation view takes no step: the first view, before a grasp")
 
-        return run
-
-    monkeypatch.setattr(sorting, "_executor", spy)
-    conf, correct = sorting._validation_evidence(models.gp, replace(FAST, validation_seeds=(1000,)))
-    assert [(r["scene"], r["policy"], r["seed"]) for r in records] == [
-        ("uncluttered", "random", 1000)
-    ]
-    decided = [d for d in records[0]["decisions"] if d["true_category"] is not None]
-    assert len(decided) > 1 and max(d["step"] for d in decided) > 1  # not just the first view
+    monkeypatch.setattr(SortingEnv, "step", no_step)
+    conf, correct = sorting._validation_evidence(models.gp, config)
+    record = sorting.validation_view(
+        Task("uncluttered", "validation", 1000), sorting._under_test(models.gp, config), config
+    )
+    decided = [d for d in record["decisions"] if d["true_category"] is not None]
+    assert len(decided) >= 5  # most of the ten objects are segments of their own
     np.testing.assert_allclose(conf, [d["first_confidence"] for d in decided])
     assert list(correct) == [d["first_label"] == d["true_category"] for d in decided]
 
@@ -221,11 +219,17 @@ def test_validation_evidence_is_cached_across_targets_and_rebuilt_when_corrupt(
         return np.array([0.3, 0.5, 0.9, 0.95]), np.array([False, True, True, True])
 
     monkeypatch.setattr(sorting, "_validation_evidence", evidence)
+    conf, correct = evidence(None, FAST)
+    calls.clear()
     strict = sorting._threshold(tmp_path, models.gp, "gp", replace(FAST, target_precision=0.95))
     loose = sorting._threshold(tmp_path, models.gp, "gp", replace(FAST, target_precision=0.6))
-    assert (strict.threshold, loose.threshold) == (0.31, 0.0) and calls == [0.95]
+    want = choose_threshold(conf, correct, 0.95)
+    assert strict.threshold == want.threshold and strict.fit == want.fit
+    assert loose.threshold == choose_threshold(conf, correct, 0.6).threshold
+    assert loose.threshold < strict.threshold and calls == [0.95]
     again = sorting._threshold(tmp_path, models.gp, "gp", replace(FAST, target_precision=0.95))
-    assert again.threshold == 0.31 and calls == [0.95]  # the saved threshold
+    assert (again.threshold, again.fit) == (strict.threshold, strict.fit)
+    assert calls == [0.95]  # the saved threshold
     (path,) = tmp_path.glob("evidence-gp-*.json")
     path.write_text("{not json")
     sorting._threshold(tmp_path, models.gp, "gp", replace(FAST, target_precision=0.9))
@@ -237,17 +241,15 @@ def test_validation_evidence_is_in_task_order_whatever_order_workers_finish(monk
 
     config = SortingEvalConfig(validation_seeds=(1000, 1001, 1002))
 
-    def executor(cfg):
-        def run(tasks, models, c):  # finished last-first, as a slow first worker would
-            for i, t in reversed(list(enumerate(tasks))):
-                decision = {"true_category": "mug", "first_confidence": i, "first_label": "mug"}
-                yield {"scene": t.scene, "seed": t.seed, "decisions": [decision]}
+    def run_episodes(fn, tasks, context, **kwargs):  # finished last-first, as a slow worker would
+        assert fn is sorting.validation_view
+        for i, t in reversed(list(enumerate(tasks))):
+            decision = {"true_category": "mug", "first_confidence": i, "first_label": "mug"}
+            yield {"scene": t.scene, "seed": t.seed, "decisions": [decision]}
 
-        return run
-
-    monkeypatch.setattr(sorting, "_executor", executor)
+    monkeypatch.setattr(sorting, "run_episodes", run_episodes)
     conf, correct = sorting._validation_evidence(None, config)
-    # the standard scenes' validation episodes (not the pile's)
+    # the standard scenes' validation views (not the pile's)
     assert conf.tolist() == sorted(conf.tolist()) and len(conf) == 3 * len(STANDARD_SCENES)
     assert correct.all()
 
@@ -334,3 +336,64 @@ def test_an_episode_runs_in_the_calibrated_cell(models, wrist_calibration, monke
     assert made[0]["extrinsics"] == "calibrated" and made[0]["robot_seed"] == 3
     assert record["steps"] >= 1 and record["skills"].get("pick", 0) >= 1
     assert seen and all(d is not None and np.any(d) for d in seen)
+
+
+@pytest.mark.parametrize(("threshold", "kinds"), [(0.0, {"place"}), (1.0, {"inspect"})])
+def test_threshold_option_sets_which_objects_are_inspected(tmp_path, prepared, threshold, kinds):
+    config = replace(FAST, policies=("gp-ipm",), threshold=threshold)
+    run_sorting_eval(tmp_path, tmp_path / "cache", config, progress=False)
+    (record,) = map(json.loads, (tmp_path / "episodes.jsonl").read_text().splitlines())
+    assert record["threshold"] == threshold
+    assert {d["kind"] for d in record["decisions"]} == kinds
+    run = json.loads((tmp_path / "run.json").read_text())
+    assert set(run["thresholds"].values()) == {threshold}  # every classifier's
+    validated = run["validated_thresholds"]["gp"]
+    fixture = choose_threshold(np.array([0.4, 0.6, 0.9]), np.array([False, True, True]), 0.95)
+    assert validated["threshold"] == fixture.threshold and not validated["used"]
+    assert validated["rule"] == "logistic-precision" and "validation seeds" in validated["data"]
+
+
+def test_thresholds_expand_each_confidence_driven_policy() -> None:
+    policies = ("random", "gp-ipm", "oracle-inspect", "svm-ipm@0.3")
+    assert sorting.expand_thresholds(policies, ()) == policies
+    assert sorting.expand_thresholds(policies, (0.5, 1.0)) == (
+        "random", "gp-ipm@0.5", "gp-ipm@1.0", "oracle-inspect", "svm-ipm@0.3"
+    )  # fmt: skip
+    with pytest.raises(SortingEvalError, match="must be in"):
+        replace(FAST, threshold=1.5)
+    with pytest.raises(SortingEvalError, match="needs the fraction"):
+        replace(FAST, policies=("random-inspect",))
+
+
+def test_a_threshold_sweep_writes_the_curve_and_its_summary_keys(tmp_path, prepared, monkeypatch):
+    """The public surface of ``--thresholds``: one summary entry per policy and threshold,
+    and ``curve.json`` with each family's points and score (fake episodes: only the files)."""
+
+    def fake_episode(task, models, config):
+        base, value = sorting.split_policy_name(task.policy)
+        inspected = {"random": 0, "oracle-inspect": 1}.get(base, round(4 * (value or 0)))
+        right = min(4, 2 + inspected + task.seed % 2)
+        return {
+            "scene": task.scene, "policy": task.policy, "seed": task.seed, "objects": 4,
+            "correct": right, "accuracy": right / 4, "inspections": inspected,
+            "per_category": {"mug": {"total": 4, "correct": right}}, "grasp_failures": 0,
+            "wall_time_s": 1.0, "sim_time_s": 5.0, "decisions": [], "dropped": 0, "left": 0,
+        }  # fmt: skip
+
+    monkeypatch.setattr(sorting, "run_episode", fake_episode)
+    policies = sorting.expand_thresholds(
+        ("random", "oracle-inspect", "random-inspect@0.5", "gp-ipm"), (0.0, 0.5, 1.0)
+    )
+    config = replace(FAST, policies=policies, seeds=(0, 1, 2))
+    summary = run_sorting_eval(tmp_path, tmp_path / "cache", config, progress=False)["uncluttered"]
+    assert {"gp-ipm@0.0", "gp-ipm@0.5", "gp-ipm@1.0", "oracle-inspect", "random"} <= set(summary)
+    keys = {"accuracy_mean", "ci_low", "ci_high", "n", "grasp_failures_mean", "dropped_fraction"}
+    assert keys | {"inspections_per_object"} <= set(summary["gp-ipm@0.5"])
+    assert summary["gp-ipm@0.5"]["inspections_per_object"] == 0.5
+    curve = json.loads((tmp_path / "curve.json").read_text())["uncluttered"]
+    points = curve["gp-ipm"]["points"]
+    assert [p["threshold"] for p in points] == [0.0, 0.5, 1.0]
+    assert set(points[0]) >= {"threshold", "inspections_per_object", "accuracy_mean", "ci_low"}
+    assert set(curve["gp-ipm"]["score"]) >= {"mean", "ci_low", "ci_high"}
+    assert (tmp_path / "curve.png").exists()
+    assert "Accuracy against inspection effort" in (tmp_path / "sorting.md").read_text()
