@@ -18,8 +18,11 @@ inspection at equal inspection effort,
 ``score = 1 / (hi - lo) * integral_lo^hi (family(x) - random_line(x)) dx``, in accuracy
 points (fractions), where both are linear between their points and ``[lo, hi]`` is where
 both exist — ``[0, x_max]`` (x_max: the family's largest inspections per object) when the
-family's ``@0`` run anchors both at x = 0 and the random line reaches x_max. The family's
-curve is its ``@T`` runs; the validated run (plain name) is a point shown, not integrated.
+random line reaches x_max. The random line runs through the ``random-inspect@P`` points and
+the family's own ``@0`` and ``@1.0`` runs, which inspect nothing and everything: what random
+inspection is at P = 0 and 1 (``random-inspect`` labels with the GP, so for another
+classifier's family the line's inner points are the GP's). The family's curve is its ``@T``
+runs; the validated run (plain name) is a point shown, not integrated.
 Each paired seed gives one score (fixed x, per-seed accuracies); ``normalized`` divides it
 by ``oracle-inspect``'s gain over the same random line at its own x (the fraction of the
 achievable gain).
@@ -130,8 +133,9 @@ def _score(fam: Sequence[_Run], rand: Sequence[_Run], oracle: _Run | None) -> di
     out = dict.fromkeys(("mean", "ci_low", "ci_high", "p_vs_random_inspect", "normalized"))
     out.update(n=0, x_range=None, note=None)
     sweep = [r for r in fam if r.value is not None]  # the validated run is not on the sweep
-    anchor = [r for r in sweep if r.value == 0.0]
-    line = anchor[:1] + [r for r in rand if r.value is not None and not (anchor and r.value == 0)]
+    # the family at 0 and 1 inspects nothing / everything: random inspection at P = 0 and 1
+    ends = {r.value: r for r in sweep if r.value in (0.0, 1.0)}
+    line = [*ends.values(), *(r for r in rand if r.value is not None and r.value not in ends)]
     if len(sweep) < 2 or len(line) < 2:
         out["note"] = "needs two or more @T runs and a random-inspection line of two points"
         return out

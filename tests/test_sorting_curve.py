@@ -37,13 +37,14 @@ def _ep(policy: str, seed: int, accuracy: float, inspections: int, **extra) -> d
     return record
 
 
-# The toy curve: gp-ipm at x = 0, 0.5, 1 inspections per object; random inspection of every
-# object at x = 1; gp-ipm@0 anchors the random line at x = 0. Per seed: accuracies.
+# The toy curve: gp-ipm at x = 0, 0.5, 1 inspections per object; random inspection of half the
+# objects at x = 0.5; gp-ipm@0 and gp-ipm@1.0 (nothing / everything inspected) end the random
+# line at x = 0 and 1. Per seed: accuracies.
 TOY = {
     ("gp-ipm@0.0", 0): (0.5, 0.6),
     ("gp-ipm@0.5", 5): (0.8, 0.7),
     ("gp-ipm@1.0", 10): (0.9, 0.9),
-    ("random-inspect@1.0", 10): (0.7, 0.8),
+    ("random-inspect@0.5", 5): (0.6, 0.7),
 }
 
 
@@ -63,20 +64,20 @@ def _by_hand() -> list[float]:
         a0, a05, a1 = (
             TOY[k][s] for k in (("gp-ipm@0.0", 0), ("gp-ipm@0.5", 5), ("gp-ipm@1.0", 10))
         )
-        r1 = TOY["random-inspect@1.0", 10][s]
+        r05 = TOY["random-inspect@0.5", 5][s]
         family = 0.5 * (a0 + a05) / 2 + 0.5 * (a05 + a1) / 2
-        line = 1.0 * (a0 + r1) / 2
+        line = 0.5 * (a0 + r05) / 2 + 0.5 * (r05 + a1) / 2
         scores.append((family - line) / 1.0)
-    return scores  # [0.15, 0.025]
+    return scores  # [0.1, 0.0]
 
 
 def test_score_equals_the_trapezoid_by_hand():
     s0, s1 = _by_hand()
     score = curve(_toy())["cluttered"]["gp-ipm"]["score"]
     assert score["mean"] == pytest.approx((s0 + s1) / 2)
-    assert (s0, s1) == pytest.approx((0.15, 0.025))
-    assert score["ci_low"] == pytest.approx(0.025) and score["ci_high"] == pytest.approx(0.15)
-    assert score["p_vs_random_inspect"] == pytest.approx(0.5)  # exact: 2 of 4 sign patterns
+    assert (s0, s1) == pytest.approx((0.1, 0.0))
+    assert score["ci_low"] == pytest.approx(0.0) and score["ci_high"] == pytest.approx(0.1)
+    assert score["p_vs_random_inspect"] == pytest.approx(1.0)  # exact: one seed gains nothing
     assert score["n"] == 2 and score["x_range"] == [0.0, 1.0] and score["note"] is None
     assert score["normalized"] is None  # no oracle-inspect in the run
 
@@ -84,20 +85,19 @@ def test_score_equals_the_trapezoid_by_hand():
 def test_normalized_by_oracle_gain():
     eps = _toy({("oracle-inspect", 2): (1.0, 0.9)})  # x = 0.2
     score = curve(eps)["cluttered"]["gp-ipm"]["score"]
-    gains = [1.0 - (0.5 + 0.2 * (0.7 - 0.5)), 0.9 - (0.6 + 0.2 * (0.8 - 0.6))]
+    gains = [1.0 - (0.5 + 0.4 * (0.6 - 0.5)), 0.9 - (0.6 + 0.4 * (0.7 - 0.6))]
     assert score["normalized"] == pytest.approx(sum(_by_hand()) / sum(gains))
 
 
 def test_range_is_clipped_to_the_random_line():
-    # the family reaches x = 1, the random line (anchor and P = 0.5) only x = 0.5
-    eps = _toy({("random-inspect@0.5", 5): (0.6, 0.6)})
-    eps = [e for e in eps if e["policy"] != "random-inspect@1.0"]
-    assert (
-        max(p["inspections_per_object"] for p in curve(eps)["cluttered"]["gp-ipm"]["points"]) == 1
-    )
+    # the family reaches x = 0.8, the random line (gp-ipm@0 and P = 0.5) only x = 0.5
+    eps = _toy({("gp-ipm@0.8", 8): (0.85, 0.8)})
+    eps = [e for e in eps if e["policy"] != "gp-ipm@1.0"]
+    points = curve(eps)["cluttered"]["gp-ipm"]["points"]
+    assert max(p["inspections_per_object"] for p in points) == pytest.approx(0.8)
     score = curve(eps)["cluttered"]["gp-ipm"]["score"]
     assert score["x_range"] == [0.0, 0.5]
-    assert score["mean"] == pytest.approx(((0.8 - 0.6) / 2 + (0.7 - 0.6) / 2) / 2)
+    assert score["mean"] == pytest.approx(((0.8 - 0.6) / 2 + (0.7 - 0.7) / 2) / 2)
 
 
 def test_pairing_drops_seeds_missing_for_a_policy():
@@ -131,12 +131,12 @@ def test_curve_keys_and_families():
     validated = [p for p in fams["gp-ipm"]["points"] if p["validated"]]
     assert len(validated) == 1 and validated[0]["threshold"] == 0.7
     assert validated[0]["inspections_per_object"] == pytest.approx(0.4)
-    assert [p["threshold"] for p in fams["random-inspect"]["points"]] == [1.0]
+    assert [p["threshold"] for p in fams["random-inspect"]["points"]] == [0.5]
     assert fams["random"]["points"][0]["inspections_per_object"] == 0.0
 
 
 def test_score_needs_a_random_line():
-    eps = [e for e in _toy() if not e["policy"].startswith("random-inspect")]
+    eps = [e for e in _toy() if e["policy"] not in ("random-inspect@0.5", "gp-ipm@1.0")]
     score = curve(eps)["cluttered"]["gp-ipm"]["score"]
     assert score["mean"] is None and "random-inspection line" in score["note"]
 
@@ -191,6 +191,6 @@ def test_write_curve(tmp_path):
     assert json.loads(result["json"].read_text()) == result["curve"]
     text = "\n".join(result["lines"])
     assert "### cluttered" in text and "`gp-ipm`, mean gain over random inspection" in text
-    assert "+8.8 points" in text and "What inspection did" in text and "(curve.png)" in text
+    assert "+5.0 points" in text and "What inspection did" in text and "(curve.png)" in text
     with pytest.raises(ValueError, match="at least one"):
         write_curve([], tmp_path)
