@@ -39,6 +39,7 @@ from ipbench.envs.extrinsics import ExtrinsicsError, check_extrinsics
 from ipbench.envs.layout import SCENES, STANDARD_SCENES
 from ipbench.envs.sorting import workcell_places
 from ipbench.eval.episodes import BACKENDS, open_run, record_episodes, run_episodes
+from ipbench.eval.label_curve import label_curve, label_curve_lines
 from ipbench.eval.perception import PerceptionEvalConfig, model_key, trained_models
 from ipbench.eval.prepare import prepare_perception
 from ipbench.eval.schedule import longest_first, task_cost
@@ -776,5 +777,8 @@ def run_sorting_eval(
             fitted=np.nan_to_num(c.fitted_precision, nan=1.0),
         )
     curve = write_curve(episodes, out)
-    write_report(episodes, out, sweep, sections=curve["lines"])
+    labels = label_curve(episodes)
+    if labels:
+        (out / "label_curve.json").write_text(json.dumps(labels, indent=1) + "\n")
+    write_report(episodes, out, sweep, sections=[*curve["lines"], *label_curve_lines(labels)])
     return json.loads((out / "summary.json").read_text())

@@ -33,20 +33,24 @@ def _errorbar(ax, points, **style) -> None:
 
 
 def _with_anchor(points: list[Mapping], gp: Mapping | None) -> list[Mapping]:
-    """The random-inspection points, from ``gp-ipm@0`` (the same loop inspecting nothing)
-    when there is no ``random-inspect@0``."""
-    anchor = [p for p in (gp or {}).get("points", []) if p["threshold"] == 0 and not p["validated"]]
-    if anchor and not any(p["threshold"] == 0 for p in points):
-        return anchor[:1] + list(points)
-    return list(points)
+    """The random-inspection points with ``gp-ipm@0`` and ``gp-ipm@1.0`` (the same loop
+    inspecting nothing and everything: random inspection at P = 0 and 1) in place of its own
+    ends where it has none, sorted by inspections per object."""
+    own = {p["threshold"] for p in points}
+    ends = [
+        p
+        for p in (gp or {}).get("points", [])
+        if not p["validated"] and p["threshold"] in (0.0, 1.0) and p["threshold"] not in own
+    ]
+    return sorted([*points, *ends], key=lambda p: p["inspections_per_object"])
 
 
 def curve_png(path: Path, curve: Mapping[str, Mapping[str, Mapping]]) -> None:
     """One panel per scene: accuracy (%) against inspections per object, 95 % CI bars.
 
     Each confidence family is a solid line over its ``@T`` runs with its validated run as a
-    star; random inspection a dashed grey line (from ``gp-ipm@0`` when it has no ``@0``
-    point); oracle-inspect and random sorting markers.
+    star; random inspection a dashed grey line (ended by ``gp-ipm@0`` and ``gp-ipm@1.0``
+    where it has no point of its own there); oracle-inspect and random sorting markers.
     """
     scenes = list(curve) or ["no episodes"]
     fig = Figure(figsize=(1.2 + 4.0 * len(scenes), 3.8), dpi=_DPI)
