@@ -51,9 +51,9 @@ def _measured(records: Sequence[Mapping]) -> float:
 def label_curve(episodes: Sequence[Mapping], family: str = "gp-ipm") -> dict:
     """``{scene: {"thresholds", "label_accuracy", "inspected_fraction", "decisions",
     "measured": [{"threshold", "label_accuracy", "decisions"}]}}`` for each scene with
-    ``<family>@1.0`` records and decisions of known truth (others are left out). Fractions in [0, 1]; ``thresholds`` is
-    :data:`~ipbench.policies.threshold.THRESHOLD_GRID`; ``measured`` lists every
-    ``<family>@T`` run of the scene."""
+    ``<family>@1.0`` records and decisions of known truth (others are left out). Fractions
+    in [0, 1]; ``thresholds`` is :data:`~ipbench.policies.threshold.THRESHOLD_GRID`;
+    ``measured`` lists every ``<family>@T`` run of the scene."""
     out: dict[str, dict] = {}
     for scene in dict.fromkeys(r["scene"] for r in episodes):
         runs: dict[float, list[Mapping]] = {}
