@@ -56,7 +56,8 @@ from ipbench.envs.sensors import (
 from ipbench.envs.skills import Skills
 from ipbench.envs.sorting import WRIST_CAMERA, WRIST_SIZE
 from ipbench.envs.world import Places, build_world
-from ipbench.eval.hand_views import render_in_hand_views
+from ipbench.eval.hand_factors import check_factor
+from ipbench.eval.hand_views import render_in_hand_factors, render_in_hand_views
 from ipbench.eval.schedule import pool_worker
 from ipbench.eval.workers import run_tasks
 from ipbench.perception.cloud import PerceptionError, depth_to_points
@@ -67,9 +68,11 @@ from ipbench.policies import EVAL_CAMERAS
 
 __all__ = [
     "DatasetConfig",
+    "InHandAblationConfig",
     "ViewSet",
     "render_instance_views",
     "render_in_hand_points",
+    "render_in_hand_rows",
     "render_cluttered_segments",
     "load_or_build",
     "missing_parts",
@@ -187,8 +190,32 @@ class DatasetConfig:
         objects (every instance's dimensions, mass, family and split)."""
         objects = hashlib.sha256(repr(instances(catalog=self.catalog)).encode()).hexdigest()
         fields = {"v": DATASET_VERSION, "objects": objects, **asdict(self)}
+        if fields.get("in_hand_removed", 0) is None:  # InHandAblationConfig as captured:
+            del fields["in_hand_removed"]  # the key of the DatasetConfig it extends
         text = json.dumps(fields, sort_keys=True, default=str)
         return hashlib.sha256(text.encode()).hexdigest()[:16]
+
+
+@dataclass(frozen=True)
+class InHandAblationConfig(DatasetConfig):
+    """A capture of the in-hand ablation (:mod:`ipbench.eval.in_hand_ablation`): a
+    :class:`DatasetConfig` whose in-hand views have one factor removed.
+
+    A subclass, not a new field, so that every configuration and fingerprint holding a
+    :class:`DatasetConfig` (models, sorting runs) stays as it was.
+
+    Attributes
+    ----------
+    in_hand_removed : the factor of :data:`~ipbench.eval.hand_factors.IN_HAND_FACTORS`
+        removed from the in-hand capture; ``None``: every factor as captured (then the cache
+        key is that of the :class:`DatasetConfig` with the same other fields).
+    """
+
+    in_hand_removed: str | None = None
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        check_factor(self.in_hand_removed)
 
 
 def _views(config: DatasetConfig, inst: ObjectInstance):
@@ -291,6 +318,19 @@ def render_in_hand_points(inst: ObjectInstance, config: DatasetConfig) -> ViewSe
     category = _category(inst)
     return render_in_hand_views(
         inst, config, lambda v: _point_rng(config, "in_hand", inst.index, category, v)
+    )
+
+
+def render_in_hand_rows(
+    inst: ObjectInstance, config: DatasetConfig, factors: tuple[str | None, ...]
+) -> dict[str | None, ViewSet]:
+    """:func:`~ipbench.eval.hand_views.render_in_hand_factors` (every factor's in-hand views
+    of ``inst`` from one pass), with the point samples :func:`render_in_hand_points` draws:
+    factor ``f``'s views are those :func:`render_in_hand_points` renders with
+    ``in_hand_removed=f``."""
+    category = _category(inst)
+    return render_in_hand_factors(
+        inst, config, factors, lambda v: _point_rng(config, "in_hand", inst.index, category, v)
     )
 
 
@@ -428,21 +468,24 @@ def load_or_build(
     about a third less rendering. They are the known views of the whole set, in its order (so the
     models are identical), taken from the whole cache file if it exists; otherwise only their
     parts are rendered, which a later whole build reuses (only a whole build writes the file).
-    ``kinds`` (with ``training_only``): only these per-instance view kinds, e.g.
-    ``("isolated",)`` for a table-top model (the same views, in the same order, as the subset
-    of the whole set).
+    ``kinds``: only these per-instance view kinds, e.g. ``("isolated",)`` for a table-top
+    model (the same views, in the same order, as the subset of the whole set); without
+    ``training_only``, those kinds' parts of every chosen instance (known and unknown) and no
+    cluttered segments, taken from the whole file if it exists, else from the parts (e.g.
+    ``("in_hand",)`` for the in-hand ablation, whose captures differ in the in-hand views
+    alone).
     """
-    if kinds is not None and not training_only:
-        raise ValueError("kinds selects training views: pass training_only=True with it")
     cache_dir = Path(cache_dir)
     cache_dir.mkdir(parents=True, exist_ok=True)
     path = cache_dir / f"views-{config.key()}.npz"
     if path.exists():
         try:
             views = ViewSet.load(path)
+            sources = tuple(_RENDERERS) if kinds is None else kinds
             if training_only:
-                sources = tuple(_RENDERERS) if kinds is None else kinds
                 return views.subset(views.known & np.isin(views.source, sources))
+            if kinds is not None:
+                return views.subset(np.isin(views.source, sources))
             return views
         except (OSError, ValueError, KeyError, zipfile.BadZipFile) as err:
             print(f"ipbench: dataset cache {path} is unreadable ({err}); rebuilding it")
@@ -477,7 +520,7 @@ def load_or_build(
         bar.update()
     bar.close()
     sets = [parts[kind, inst.name] for kind, inst in jobs]
-    if training_only:
+    if training_only or kinds is not None:
         return ViewSet.concat(sets)
     part = parts_dir / "cluttered.npz"
     clutter = _load_part(part)

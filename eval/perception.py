@@ -14,7 +14,10 @@ with every classifier of :attr:`PerceptionEvalConfig.classifiers` and its ``accu
 ``log_loss``, ``ece``, ``fit_s``, ``predict_s`` on the unknown isolated instances, a point
 classifier also ``predict_ms_per_scene``, the same on cluttered segments under
 ``cluttered``, the in-hand model on unknown in-hand views under ``in_hand`` and the scene model
-on them under ``in_hand_scene_model``), ``perception.md`` and PNG figures.
+on them under ``in_hand_scene_model``; ``splits``; ``fusion``: fused accuracy against the
+number of views, in hand and on the table, :mod:`ipbench.eval.view_fusion`; with the ablations
+``ablation`` and ``in_hand_ablation``, :mod:`ipbench.eval.in_hand_ablation`),
+``perception.md`` and PNG figures.
 """
 
 from __future__ import annotations
@@ -125,7 +128,9 @@ class PerceptionEvalConfig:
     segmentation_seeds : episode seeds of both standard scenes whose segmentation is scored
         against the ground-truth masks.
     ablation : also run the sensor ablation (:func:`sensor_ablation`): every switchable
-        effect of the env's sensor switched off in turn, on the :data:`ABLATION_PROTOCOL`.
+        effect of the env's sensor switched off in turn, on the :data:`ABLATION_PROTOCOL`;
+        and the in-hand ablation (:mod:`ipbench.eval.in_hand_ablation`): each in-hand factor
+        removed in turn.
     pointnet : the PointNet ensemble's architecture and training (``pointnet_ensemble``).
     """
 
@@ -149,8 +154,8 @@ class PerceptionEvalConfig:
 
     @classmethod
     def for_env(cls, env_id: str, **overrides) -> PerceptionEvalConfig:
-        """The benchmark's configuration for ``env_id``'s objects and sensor (the sensor
-        ablation for the catalogues with splits to generalise to, i.e. v2 on)."""
+        """The benchmark's configuration for ``env_id``'s objects and sensor (the sensor and
+        in-hand ablations for the catalogues with splits to generalise to, i.e. v2 on)."""
         dataset = DatasetConfig(env_id=env_id)
         return cls(dataset=dataset, ablation=dataset.catalog != "v1", **overrides)
 
@@ -487,6 +492,7 @@ def _run_perception_eval(out: Path, cache: Path, config: PerceptionEvalConfig) -
     }
     split_sets = split_tests(views, config.dataset.catalog)
     splits: dict = {}
+    split_probs: dict = {}  # (split, classifier) -> (n, 5) probabilities, for view fusion
     codebook = _fit_codebook(train, config)
     x_split = {name: encode(t, codebook) for name, t in split_sets.items()}
     x_train = encode(train, codebook)
@@ -533,11 +539,17 @@ def _run_perception_eval(out: Path, cache: Path, config: PerceptionEvalConfig) -
                     got = {"n": 0}
                     if model is not None:
                         x = _inputs(name, test, x_split[split])
-                        got = _score(model, test, x, index)[0]
+                        got, split_probs[split, name], _ = _score(model, test, x, index)
                     splits.setdefault(split, {})[name] = _brief(got)
     metrics["splits"] = splits
+    from ipbench.eval.view_fusion import fusion_metrics
+
+    metrics["fusion"] = fusion_metrics(split_sets, split_probs, config.dataset.catalog)
     if config.ablation:
+        from ipbench.eval.in_hand_ablation import in_hand_ablation
+
         metrics["ablation"] = sensor_ablation(cache, config)
+        metrics["in_hand_ablation"] = in_hand_ablation(cache, config)
     segmentation = segmentation_scores(config.segmentation_seeds, config)
     (out / "metrics.json").write_text(json.dumps(metrics, indent=2))
     (out / "segmentation.json").write_text(json.dumps(segmentation, indent=2))

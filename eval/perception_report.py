@@ -14,6 +14,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
+from ipbench.eval.in_hand_report import fusion_table, in_hand_ablation_table  # noqa: E402
 from ipbench.perception.metrics import reliability_curve  # noqa: E402
 
 __all__ = ["write_report"]
@@ -228,6 +229,7 @@ def write_report(
             f"{m['merged']} | {m['split']} |"
         )
     lines += ["", *_splits_table(metrics, thesis), *_ablation_table(metrics)]
+    lines += [*in_hand_ablation_table(metrics), *fusion_table(metrics)]
     lines += ["", *_calibration_note(metrics), "", *_pointnet_note(metrics)]
     for subset, classes in subsets.items():
         lines += [

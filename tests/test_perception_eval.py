@@ -236,9 +236,17 @@ def test_perception_eval_writes_the_report(cache, views, tmp_path):
     assert splits["similar"]["gp"]["accuracy"] == saved["5class"]["gp"]["accuracy"]
     assert splits["in_hand"]["gp"]["accuracy"] == saved["5class"]["gp"]["in_hand"]["accuracy"]
     assert "ablation" not in saved  # v1 runs no sensor ablation
+    assert "in_hand_ablation" not in saved  # nor the in-hand one
+    for condition in ("in_hand", "table_top"):  # fused accuracy for 1..6 views, per classifier
+        fused = saved["fusion"][condition]["gp"]
+        assert len(fused["accuracy_by_views"]) == len(fused["bayes_accuracy_by_views"]) == 6
+        assert fused["accuracy_by_views"][0] == pytest.approx(
+            splits["in_hand" if condition == "in_hand" else "similar"]["gp"]["accuracy"]
+        )
     text = (tmp_path / "perception.md").read_text()
     assert "## 5 classes on every test split" in text and "| pointnet_ensemble |" in text
     assert "## PointNet deep ensemble" in text
+    assert "## Fused accuracy against the number of views" in text
     assert "## 5class" in text and "## 3class" in text and "| cluttered |" in text
     assert "In hand:" in text and "table-top model accuracy" in text
     assert (tmp_path / "confusion_5class_gp.png").stat().st_size > 1000
