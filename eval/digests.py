@@ -790,7 +790,10 @@ STAGES: dict[str, Stage] = {
             _stage_threshold,
             "the threshold rule on those predictions (target precision 0.9): the grid point "
             "must be identical everywhere",
-            {"threshold": (0.0, 0.0), "fit_a": (0.01, 0.0), "fit_b": (0.01, 0.0)},
+            # the fit follows the GP's predictions (within the gpc stage's tolerances):
+            # OpenBLAS' SkylakeX, Haswell and Sandybridge kernels gave fit_a 2.71-2.80,
+            # fit_b 3.18-3.46; the grid point 0.4 on every one
+            {"threshold": (0.0, 0.0), "fit_a": (0.2, 0.0), "fit_b": (0.5, 0.0)},
             depends_on=("gpc",),
             cheap=True,
         ),
