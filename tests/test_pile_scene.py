@@ -92,9 +92,9 @@ def test_released_ids_refuse_the_pile_and_list_their_scenes(env_id):
         gym.make("ipbench/Sorting-v2", scene="heap")
 
 
-def test_evaluation_takes_the_pile_and_keeps_its_validation_episodes(monkeypatch):
+def test_evaluation_takes_the_pile_and_keeps_its_validation_scenes(monkeypatch):
     """``--scenes uncluttered,cluttered,pile`` passes the evaluation's check; the validation
-    episodes that choose the thresholds stay those of the standard scenes."""
+    scenes that choose the thresholds stay the standard ones."""
     import ipbench.eval.sorting as sorting
 
     config = sorting.SortingEvalConfig(
@@ -102,14 +102,11 @@ def test_evaluation_takes_the_pile_and_keeps_its_validation_episodes(monkeypatch
     )
     seen = []
 
-    def executor(cfg):
-        def run(tasks, models, c):
-            seen.extend(tasks)
-            return iter(())
+    def run_episodes(fn, tasks, context, **kwargs):
+        seen.extend(tasks)
+        return iter(())
 
-        return run
-
-    monkeypatch.setattr(sorting, "_executor", executor)
+    monkeypatch.setattr(sorting, "run_episodes", run_episodes)
     sorting._validation_evidence(None, config)
     assert [(t.scene, t.seed) for t in seen] == [
         (scene, seed) for scene in STANDARD_SCENES for seed in (1000, 1001)
