@@ -2,13 +2,11 @@
 
 from __future__ import annotations
 
-import importlib
-import inspect
-
 import gymnasium as gym
 import mujoco
 import numpy as np
 import pytest
+from exports import assert_exports
 
 import ipbench.envs  # noqa: F401  (registers the ids)
 from ipbench.assets.objects import CATEGORIES, instances
@@ -40,16 +38,7 @@ V2 = DatasetConfig(env_id="ipbench/Sorting-v2", in_hand_views=2, in_hand_placeme
     ["ipbench.eval.hand_factors", "ipbench.eval.in_hand_ablation", "ipbench.eval.in_hand_report"],
 )
 def test_export_lists_name_the_public_definitions(name):
-    module = importlib.import_module(name)
-    assert all(hasattr(module, n) for n in module.__all__)
-    defined = {
-        n
-        for n, v in vars(module).items()
-        if not n.startswith("_")
-        and (inspect.isclass(v) or inspect.isfunction(v))
-        and v.__module__ == name
-    }
-    assert defined <= set(module.__all__), defined - set(module.__all__)
+    assert_exports(name)
 
 
 def test_the_ablation_lists_every_factor_and_captures_each_apart():

@@ -2,13 +2,12 @@
 
 from __future__ import annotations
 
-import importlib
-import inspect
 import json
 import shutil
 
 import numpy as np
 import pytest
+from exports import assert_exports
 
 from ipbench.assets.objects import CATEGORIES
 from ipbench.eval.dataset import DatasetConfig, ViewSet, load_or_build
@@ -44,16 +43,7 @@ TINY = DatasetConfig(
     ],
 )
 def test_export_lists_name_the_public_definitions(name):
-    module = importlib.import_module(name)
-    assert all(hasattr(module, n) for n in module.__all__)
-    defined = {
-        n
-        for n, v in vars(module).items()
-        if not n.startswith("_")
-        and (inspect.isclass(v) or inspect.isfunction(v))
-        and v.__module__ == name
-    }
-    assert defined <= set(module.__all__), defined - set(module.__all__)
+    assert_exports(name)
 
 
 @pytest.fixture(scope="module")

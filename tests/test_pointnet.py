@@ -3,12 +3,10 @@ training classes, its checkpoint, its reproducibility, and its place in the perc
 
 from __future__ import annotations
 
-import importlib
-import inspect
-
 import numpy as np
 import pytest
 import torch
+from exports import assert_exports
 
 from ipbench.perception.model import ModelFileError
 from ipbench.perception.pointnet import (
@@ -197,14 +195,4 @@ def test_trained_models_caches_the_ensemble_beside_the_gp(tmp_path, monkeypatch)
 
 def test_the_pointnet_modules_export_their_public_names():
     for short in ("pointnet", "_pointnet_net", "_pointnet_config"):
-        name = f"ipbench.perception.{short}"
-        module = importlib.import_module(name)
-        assert all(hasattr(module, n) for n in module.__all__)
-        defined = {
-            n
-            for n, v in vars(module).items()
-            if not n.startswith("_")
-            and (inspect.isclass(v) or inspect.isfunction(v))
-            and v.__module__ == name
-        }
-        assert defined <= set(module.__all__), defined - set(module.__all__)
+        assert_exports(f"ipbench.perception.{short}")
