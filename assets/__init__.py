@@ -1,7 +1,8 @@
 """MJCF models of the CloPeMa work cell and the procedural household objects.
 
 The robot (``motoman/``), the stereo head (``head/``) and the work cell (``scenes/``) are
-hand-written MJCF built from primitives with the numbers of ``shared/facts/robot_facts.md``;
+hand-written MJCF built from primitives with the numbers of the Glasgow CloPeMa robot
+description (G. Aragon-Camarasa, ``gerac83/ug_bluerobot``, ``clopema_description``);
 :mod:`ipbench.assets.compose` joins them with :class:`mujoco.MjSpec`, and
 :mod:`ipbench.assets.objects` generates the household objects.
 """

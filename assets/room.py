@@ -1,11 +1,11 @@
 """The lab room around the work cell and the posters on its walls (background clutter).
 
-Sources (``shared/facts/robot_facts.md`` §2.7; no value was chosen on a result):
+Sources (no value was chosen on a result):
 
-- **Room**: walls at x_base = +-2.95 m and y_base = +-2.3 m (5.9 x 4.6 m), ceiling 3.0 m, from
-  the Glasgow CloPeMa description (UGBR ``urdf/room_ug.urdf.xacro``). The world here is the
-  r750 frame, yawed -90 deg from ``base_link`` (x_r750 = -y_base): the front wall stands at
-  x = +2.3 m, the back wall at x = -2.3 m, the side walls at y = +-2.95 m. Wall colour is not
+- **Room**: walls at x_base = +-2.95 m and y_base = +-2.3 m (5.9 x 4.6 m), ceiling 3.0 m, from the
+  Glasgow CloPeMa description (``gerac83/ug_bluerobot``, ``urdf/room_ug.urdf.xacro``). The world
+  here is the r750 frame, yawed -90 deg from ``base_link`` (x_r750 = -y_base): the front wall stands
+  at x = +2.3 m, the back wall at x = -2.3 m, the side walls at y = +-2.95 m. Wall colour is not
   documented: a plain light paint.
 - **Posters**: ISO 216 paper sizes A1 (0.594 x 0.841 m) and A2 (0.420 x 0.594 m), portrait,
   hung with their centre 1.45 m above the floor (57 in "on centre", the usual gallery and

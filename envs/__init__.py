@@ -11,18 +11,17 @@ Importing this package registers the environments::
 the standard scenes are also registered as their own ids. Every id takes ``cameras=`` (the
 observation mode: ``("wrist", "head")`` by default, ``("wrist",)`` renders no head images). A
 released id never changes behaviour: a change bumps the version. ``-v0`` ids keep the first
-manipulation (fully opened jaws, blind descents; see :data:`ipbench.envs.sorting.V0`). ``-v2``
-ids, the benchmark's (:data:`LATEST`, released with issue 12's headline measurement), add the
-v2 object catalogue and structured-light depth (:data:`ipbench.envs.sorting.V2`), faster
-physics, the ``pick`` command, and a third scene, ``"pile"`` (twenty objects piled, some on
-others; ``ipbench/SortingPile-v2`` or ``scene="pile"``), which v0/v1 ids refuse.
+manipulation (fully opened jaws, blind descents; see :data:`ipbench.envs.sorting.V0`). ``-v2`` ids,
+the benchmark's (:data:`LATEST`), add the v2 object catalogue and structured-light depth
+(:data:`ipbench.envs.sorting.V2`), faster physics, the ``pick`` command, and a third scene,
+``"pile"`` (twenty objects piled, some on others; ``ipbench/SortingPile-v2`` or ``scene="pile"``),
+which v0/v1 ids refuse.
 
 ``ipbench/Exploration-v0`` (:data:`EXPLORATION_IDS`, thesis ch. 3) is the second task family:
 the stereo head explores a table scene and reports the objects it recognises
 (:mod:`ipbench.envs.exploration`; ``gym.make("ipbench/Exploration-v0", scene="complex")``).
-It was released with issue 13's headline measurement and is frozen since (later changes get
-a new version; options whose default keeps the behaviour, such as ``extrinsics``, may be
-added).
+It is released and frozen: a change of behaviour gets a new version; options whose default
+keeps the behaviour, such as ``extrinsics``, may be added.
 :data:`ALL_IDS` lists every registered ipbench id.
 """
 
@@ -61,8 +60,7 @@ ENV_IDS: dict[str, dict] = {
 """Every registered id and the keyword arguments it fixes."""
 
 V2_IDS: tuple[str, ...] = tuple(i for i in ENV_IDS if i.endswith("-v2"))
-"""The v2 ids (released by issue 12; frozen since, as every id not in
-:data:`UNDER_DEVELOPMENT`)."""
+"""The v2 ids (released and frozen, as every id not in :data:`UNDER_DEVELOPMENT`)."""
 
 EXPLORATION_IDS: dict[str, dict] = {"ipbench/Exploration-v0": {}}
 """The exploration ids (thesis ch. 3) and the keyword arguments each fixes; entry point
@@ -72,8 +70,8 @@ ALL_IDS: tuple[str, ...] = (*ENV_IDS, *EXPLORATION_IDS)
 """Every registered ipbench id."""
 
 UNDER_DEVELOPMENT: tuple[str, ...] = ()
-"""Ids whose behaviour may still change until the issue that makes their headline measurement
-releases them; every other id is released and frozen (``tests/test_released_ids.py``)."""
+"""Ids whose behaviour may still change until their headline measurement releases them; every
+other id is released and frozen (``tests/test_released_ids.py``)."""
 
 
 class EnvIdError(ValueError):

@@ -29,8 +29,8 @@ coordinates to frame ``b``'s): the stereo ``left_to_right`` is the right-from-le
 a hand-eye ``X`` is :mod:`~ipbench.perception.calibration.hand_eye`'s (camera-to-gripper for
 ``eye_in_hand``, camera-to-base for ``eye_to_hand``; a head camera's camera-to-base holds at
 ``head_gaze`` only) and its residuals are the RMS over pose pairs. ``head_gaze`` is an optional
-key of format version 1 (added with issue 14's ``extrinsics="calibrated"``), so the version did
-not change: every file written before loads unchanged. Rotations must be proper to
+key of format version 1 (only ``extrinsics="calibrated"`` needs it), so a file without it
+loads unchanged. Rotations must be proper to
 :data:`ORTHONORMAL_TOLERANCE`.
 
 :meth:`CalibrationFile.load` refuses a missing file, non-JSON, another format or version,

@@ -1,4 +1,4 @@
-"""``ipbench/Exploration-v0`` (released with issue 13): explore a table scene with the stereo head.
+"""``ipbench/Exploration-v0``: explore a table scene with the stereo head.
 
 Thesis ch. 3: the robot's two PTU-mounted cameras saccade over a table and report the
 database objects they recognise. The public contract:

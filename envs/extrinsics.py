@@ -1,11 +1,11 @@
-"""What the robot knows of its cameras: the envs' ``extrinsics`` option (issue 14, thesis ch. 4).
+"""What the robot knows of its cameras: the envs' ``extrinsics`` option (thesis ch. 4).
 
 ``extrinsics`` (:data:`EXTRINSICS`) chooses where an observation's camera matrices ``*_K``,
 poses ``*_pose`` and (not ``"true"``) distortion ``*_dist`` come from:
 
 * ``"true"`` (default, the released ids): the simulator's exact values; the world is the nominal
-  model and the images are pinhole renders. The envs keep their previous code path unchanged
-  and never build a :class:`CameraKnowledge`.
+  model and the images are pinhole renders. The envs take the same code path as without the
+  option and never build a :class:`CameraKnowledge`.
 * ``"nominal"``: the world is the TRUE one (the nominal model with
   :func:`~ipbench.envs.model_errors.sample_model_errors` of ``robot_seed`` applied, images
   distorted by its lenses, the PTUs' backlash acting on every head move (Exploration: the output
@@ -297,8 +297,8 @@ def _load(path, cameras: tuple[str, ...]) -> CalibrationFile:
         _dist5(file.camera(c).dist, c, path)
     if any(c.startswith("head_") for c in cameras) and file.head_gaze is None:
         raise ExtrinsicsError(
-            f"{path} has no head_gaze (the PTU readings of its head calibration, written since "
-            f"issue 14 part 5), so the head's pose cannot follow the PTUs; {redo}"
+            f"{path} has no head_gaze (the PTU readings of its head calibration, which older "
+            f"calibration files lack), so the head's pose cannot follow the PTUs; {redo}"
         )
     return file
 

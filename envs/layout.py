@@ -4,7 +4,7 @@ A layout says which instance stands where and how: the scene's composition per c
 instances drawn from the whole catalogue (known and unknown ones both appear), and poses
 sampled inside the work table's spawn area from the seed. *Uncluttered*: upright objects well
 apart. *Cluttered*: a smaller patch, objects nearly touching and some lying on their side,
-so that they occlude each other from the wrist camera. *Pile* (``Sorting-v2`` only, issue 12):
+so that they occlude each other from the wrist camera. *Pile* (``Sorting-v2`` only):
 twenty objects of every family, a tightly packed base layer and the objects laid on top of it,
 a harder tier with heavy occlusion (:data:`SCENES`, :func:`_place_pile`).
 
@@ -12,7 +12,7 @@ Every seed lays out. A seed whose scene procedure cannot place its objects (of S
 episode seeds 0-2999 only cluttered 138) gets further attempts from a stream of its own, then,
 as a last resort, its objects upright in rows (which fit every draw of the standard scenes;
 a pile gets one more attempt from that stream, and an attempt of its almost always succeeds);
-every other seed keeps the layout it always had.
+every other seed gets the scene procedure's layout, untouched by this fallback.
 """
 
 from __future__ import annotations
@@ -104,7 +104,7 @@ SCENES: dict[str, SceneConfig] = {
     "cluttered": SceneConfig(
         "cluttered", (4, 2, 3, 3, 2), gap=0.0, lying_fraction=0.2, packing="cluster"
     ),
-    # Issue 12: a harder tier than cluttered, with heavy mutual occlusion from the wrist
+    # Pile: a harder tier than cluttered, with heavy mutual occlusion from the wrist
     # camera. 4 of each category: 20 objects, every bin equally often the right one, and the
     # fewest equal counts that hold all families of every category (3 or 4 each) in every
     # pile. In cluttered's spawn area (the robot reaches it) their footprints cover about all
@@ -529,7 +529,7 @@ def _place_in_rows(scene, picks, rng, area_center, area_half, table_height):
     return None
 
 
-# -- the pile (issue 12) ------------------------------------------------------------------------
+# -- the pile ---------------------------------------------------------------------------------
 PILE_TABLE_TRIES = 256
 """Positions a base object of a pile draws on the table (half of them next to an object
 already there); it takes the free one nearest the centre of the area, or, with none free, is

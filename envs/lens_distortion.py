@@ -22,11 +22,11 @@ scaling with it):
 
 - :data:`XTION_RGB`: the Glasgow CloPeMa robot's own calibration of its wrist Xtion's RGB
   camera (640 x 480, fx 540.9 px, plumb_bob model): ``(0.020598, -0.098738, -0.001657,
-  0.000591, 0)``; gerac83/ug_bluerobot ``clopema_description/calibration_UG/
-  xtion1_rgb_camera.yaml`` (facts sheet robot_facts.md §4.2). No published distortion of the
-  Xtion's IR (depth) camera was found; a depth image rendered from the RGB camera takes the
-  same maps, with ``cv2.INTER_NEAREST``.
-- :data:`D5100_35MM`: the head's lens is not documented (robot_facts.md §4.1, §9); the head
+  0.000591, 0)``; gerac83/ug_bluerobot
+  ``clopema_description/calibration_UG/xtion1_rgb_camera.yaml``. No published distortion of the
+  Xtion's IR (depth) camera was found; a depth image rendered from the RGB camera takes the same
+  maps, with ``cv2.INTER_NEAREST``.
+- :data:`D5100_35MM`: the head's lens is not documented in the CloPeMa description; the head
   model uses a 35 mm lens (``fovy`` 25.1 deg). The standard Nikon DX 35 mm lens is the AF-S DX
   Nikkor 35mm f/1.8G; lensfun's profile of it, measured on a DX body (crop factor 1.528, the
   D5100's format), is PTLens ``a = 0.003, b = -0.017, c = 0.005`` at 35 mm (lensfun/lensfun

@@ -1,4 +1,4 @@
-"""The true work cell differs from the nominal one by documented, seeded errors (issue 14).
+"""The true work cell differs from the nominal one by documented, seeded errors.
 
 The *nominal* model is what the robot's software believes: the work cell of
 :func:`ipbench.assets.compose.build_workcell_spec`, exactly as the released envs simulate it.
@@ -73,7 +73,7 @@ _WRIST_BODY = f"{CAMERA_ARM}_wrist_body"  # xtion.xml's "body" as compose.py att
 _CAMERAS = {"wrist_camera": f"{CAMERA_ARM}_wrist_camera"} | {
     f"head_{s}_camera": f"head_{s}_camera" for s in HEAD_SIDES
 }  # camera mount -> the model's camera name
-_STREAM = 1400  # sample_model_errors draws from default_rng([seed, 1400]) (issue 14)
+_STREAM = 1400  # sample_model_errors draws from default_rng([seed, 1400])
 _CV_FROM_MJ = np.diag([1.0, -1.0, -1.0, 1.0])  # MuJoCo camera frame <-> OpenCV (self-inverse)
 
 
@@ -257,22 +257,22 @@ class ErrorScale:
     source: str
 
 
-# Glasgow head (robot_facts.md §2.6): right PTU relative to the left, nominal (0, -0.30, 0) m,
-# rpy 0 (clopema_UG.urdf.xacro) vs calibrated (0.041, -0.285, 0.004) m, rpy (-2.7, 0.3, -1.7)
-# deg (calibration_UG). Per-axis RMS 25.3 mm, 1.85 deg of a relative pose, i.e. of the
+# Glasgow head (CloPeMa description, gerac83/ug_bluerobot): right PTU relative to the left, nominal
+# (0, -0.30, 0) m, rpy 0 (clopema_UG.urdf.xacro) vs calibrated (0.041, -0.285, 0.004) m, rpy (-2.7,
+# 0.3, -1.7) deg (calibration_UG). Per-axis RMS 25.3 mm, 1.85 deg of a relative pose, i.e. of the
 # difference of two independent base errors: each base gets RMS / sqrt(2) = 17.9 mm, 1.31 deg.
 _GLASGOW_RIGHT_PTU_M = np.array([0.041, -0.285, 0.004]) - np.array([0.0, -0.30, 0.0])
 _GLASGOW_RIGHT_PTU_DEG = np.array([-2.7, 0.3, -1.7])
 _per_base = float(np.sqrt(np.mean(_GLASGOW_RIGHT_PTU_M**2) / 2.0))
 _per_base_deg = float(np.sqrt(np.mean(_GLASGOW_RIGHT_PTU_DEG**2) / 2.0))
-_GLASGOW = "robot_facts.md §2.6, Glasgow right PTU nominal vs calibrated; per-axis RMS / sqrt(2)"
+_GLASGOW = "CloPeMa ug_bluerobot, Glasgow right PTU nominal vs calibrated; per-axis RMS / sqrt(2)"
 
 ERROR_SCALES: dict[str, ErrorScale] = {
-    # issue 14: "a few mm and tenths of a degree"; per-axis sigma 2 mm / 0.2 deg give mean
-    # magnitudes 1.596 sigma = 3.2 mm and 0.32 deg.
-    "camera_mount_translation": ErrorScale(0.002, "m", "sigma", "issue 14: 'a few mm'"),
+    # No published spread of a camera's mounting: chosen "a few mm and tenths of a degree";
+    # per-axis sigma 2 mm / 0.2 deg give mean magnitudes 1.596 sigma = 3.2 mm and 0.32 deg.
+    "camera_mount_translation": ErrorScale(0.002, "m", "sigma", "none found; chosen 'a few mm'"),
     "camera_mount_rotation": ErrorScale(
-        math.radians(0.2), "rad", "sigma", "issue 14: 'tenths of a degree'"
+        math.radians(0.2), "rad", "sigma", "none found; chosen 'tenths of a degree'"
     ),
     "ptu_base_translation": ErrorScale(_per_base, "m", "sigma", _GLASGOW),
     "ptu_base_rotation": ErrorScale(math.radians(_per_base_deg), "rad", "sigma", _GLASGOW),

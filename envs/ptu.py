@@ -3,14 +3,13 @@
 Pure numpy (a compiled model is read once for its limits and speeds). Every number has one
 home:
 
-* joint limits: ``assets/head/ptu_d46.xml`` (pan +-158.9 deg, tilt -31.1 deg up / +46.6 deg
-  down; facts sheet ``robot_facts.md`` §3, PTU-D46 User's Manual v2.14.0 §4.3.4), read from
-  the compiled model's ``jnt_range``;
-* maximum speeds: the same XML's joint ``user`` attribute (rad/s; pan 300 deg/s, tilt
-  60 deg/s, facts §3: D47 manual "pan speeds over 300°/second, tilt over 60°/s"), read from
+* joint limits: ``assets/head/ptu_d46.xml`` (pan +-158.9 deg, tilt -31.1 deg up / +46.6 deg down;
+  PTU-D46 User's Manual v2.14.0 §4.3.4), read from the compiled model's ``jnt_range``;
+* maximum speeds: the same XML's joint ``user`` attribute (rad/s; pan 300 deg/s, tilt 60 deg/s,
+  Directed Perception D47 User Manual: "pan speeds over 300°/second, tilt over 60°/s"), read from
   ``jnt_user``;
-* step resolution: :data:`STEP_ARCSEC` = 185.1428 arc-sec = 0.0514 deg per position (facts §3,
-  PTU-D46 User's Manual v2.14.0 §4.3.3).
+* step resolution: :data:`STEP_ARCSEC` = 185.1428 arc-sec = 0.0514 deg per position
+  (PTU-D46 User's Manual v2.14.0 §4.3.3).
 
 A command is a target (rad) per axis: it is clipped into the limits' step grid and quantised
 to whole positions (:meth:`PtuSpec.command`); the unit then moves its setpoint towards it at
@@ -49,7 +48,7 @@ __all__ = [
 AXES: tuple[str, ...] = ("pan", "tilt")
 """The axes of one unit, in the order of every (2,) array of this module."""
 STEP_ARCSEC = 185.1428
-"""One PTU-D46 position (arc-sec): 0.0514 deg (User's Manual v2.14.0 §4.3.3, facts §3)."""
+"""One PTU-D46 position (arc-sec): 0.0514 deg (PTU-D46 User's Manual v2.14.0 §4.3.3)."""
 STEP_RAD = math.radians(STEP_ARCSEC / 3600.0)
 """One position in rad (about 8.976e-4)."""
 

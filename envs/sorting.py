@@ -210,7 +210,7 @@ class SortingConfig:
     Attributes
     ----------
     scene : ``"uncluttered"`` or ``"cluttered"`` (thesis Table 5.1); with the v2 catalogue
-        also ``"pile"`` (issue 12, :data:`~ipbench.envs.layout.SCENES`).
+        also ``"pile"`` (:data:`~ipbench.envs.layout.SCENES`).
     head_size : (height, width) of each head image, px (D5100-like 3:2).
     render_size : (height, width) of ``render()`` frames from the overview camera, px.
     max_steps : step limit (truncation); ``None`` = 4 per object + 10.
@@ -296,7 +296,7 @@ V2: dict = {
     "physics": FAST_PHYSICS,
     "pick_command": True,
 }
-"""The settings ``Sorting-v2`` (released with issue 12) adds to v1: the v2 object catalogue (real
+"""The settings ``Sorting-v2`` adds to v1: the v2 object catalogue (real
 product families, printed textures, train / similar / novel splits), structured-light
 depth as the sensor makes it (projector shadow, disparity block matching, per-unit error),
 faster physics (:data:`~ipbench.envs.world.FAST_PHYSICS`: objects at rest sleep), and the
@@ -702,7 +702,7 @@ class SortingEnv(gym.Env):
         m, d, r = self.model, self.data, self._renderer
         wrist = "wrist" in self.config.cameras
         obs: dict[str, np.ndarray] = {}
-        if wrist:  # (keys in the order they always had)
+        if wrist:  # (keys in the released ids' order)
             h, w = WRIST_SIZE
             rgb, depth = r.render_rgbd(d, WRIST_CAMERA, w, h)
             seg = r.render_segmentation(d, WRIST_CAMERA, w, h)

@@ -11,7 +11,7 @@ Measured on the complex scene (seed 0) of ``ipbench/Exploration-v0`` at the head
   machine out of the figure, as a mean does not); ``cycle_s`` is SIFT's (the thesis' first
   feature type). The physics of the saccade and the ground-truth masks of ``info`` are not
   part of it.
-Targets (issue 13): ``stereo_fps`` >= 50, ``cycle_s`` <= 0.5.
+Targets: ``stereo_fps`` >= 50, ``cycle_s`` <= 0.5.
 """
 
 from __future__ import annotations

@@ -1,5 +1,4 @@
-"""The robot calibrates itself in the simulated cell: ``ipbench calibrate``'s routine (issue 14,
-thesis ch. 4).
+"""The robot calibrates itself in the simulated cell (thesis ch. 4): ``ipbench calibrate``.
 
 The left gripper holds the 24 mm checkerboard plate (:mod:`ipbench.assets.calibration_target`)
 and the robot samples views automatically, as the thesis did with its arm:

@@ -1,11 +1,11 @@
-"""``ipbench eval calibration``: how well the robot calibrates its cameras (issue 14, ch. 4).
+"""``ipbench eval calibration``: how well the robot calibrates its cameras (thesis ch. 4).
 
 Three parts, all against the simulator's truth:
 
 1. **Hand-eye study** (:mod:`.calibration_study`, pose level): every method's X error against
    the truth for 3/5/10/20 poses at OpenCV's regression-test noise and a tenth of it, and the
    rotation-diversity sweep that breaks Tsai; ``metrics.json``'s ``hand_eye`` block is the
-   issue's view (10 poses, default noise).
+   10-pose view at the default noise.
 2. **Self-calibration in the simulated cell** (:mod:`.calibrate`): a cell whose true model
    differs from the nominal one (``robot_seed``) calibrates itself from rendered images; per
    camera, the error of the nominal model's X and of the calibrated X against the truth, and

@@ -1,4 +1,4 @@
-"""Reconstruction accuracy of the calibrated cameras, as thesis Tables 4.2-4.5 (issue 14).
+"""Reconstruction accuracy of the calibrated cameras, as thesis Tables 4.2-4.5.
 
 The 24 mm checkerboard (thesis ch. 4) is presented by the left arm at ``poses`` random poses
 (the sampling of :mod:`ipbench.eval.calibrate`'s head capture: a point in the presentation
@@ -52,13 +52,13 @@ and the residuals of the reconstruction against the Kabsch (rigid) fit of the bo
 per axis of the method's left camera frame (x right, y down, z along the view), mm.
 Aggregates: RMSE of the distance errors and mean |residual| per axis, over all trials.
 
-Thesis figures (seed thesis ch. 4; facts sheet sensor_and_calibration_facts.md §1-2): head
-RMSE 0.16 mm (Table 4.3), per-axis residuals < 0.3 mm (Table 4.2), Xtion 12.5 mm (Table 4.4),
-Kinect v2 11.6 mm (Table 4.5); the Xtion's 12.5 mm is in the robot frame ("reconstructing a
-checkerboard in the Baxter chain", facts sheet §1). Ranges chosen from geometry before any
-result: pan +-8 deg and tilt +-5 deg keep most of the before view in sight (head FOV about
-37 x 25 deg at 1024 x 680, f = 1519 px) and stay within the 13 px parallax the dynamic
-update's homography filter was set for (``dynamic.py``).
+Thesis figures (A. Khan, PhD thesis, University of Glasgow, 2018, ch. 4): head RMSE 0.16 mm
+(Table 4.3), per-axis residuals < 0.3 mm (Table 4.2), Xtion 12.5 mm (Table 4.4), Kinect v2
+11.6 mm (Table 4.5); the Xtion's 12.5 mm is in the robot frame (a checkerboard reconstructed
+through the Baxter's kinematic chain, §4.3.1). Ranges chosen from geometry before any result:
+pan +-8 deg and tilt +-5 deg keep most of the before view in sight (head FOV about 37 x 25 deg
+at 1024 x 680, f = 1519 px) and stay within the 13 px parallax the dynamic update's homography
+filter was set for (``dynamic.py``).
 """
 
 from __future__ import annotations
@@ -107,7 +107,7 @@ PAN_RANGE_DEG = 8.0
 TILT_RANGE_DEG = 5.0
 N_PRODUCTS = 6
 HEAD_METHODS = ("true", "encoders", "dynamic", "dynamic_both")
-THESIS = {  # seed thesis ch. 4 (facts sheet §1-2)
+THESIS = {  # A. Khan, PhD thesis, University of Glasgow, 2018, ch. 4
     "head_rmse_mm": 0.16,  # Table 4.3
     "head_axis_residual_max_mm": 0.3,  # Table 4.2
     "xtion_rmse_mm": 12.5,  # Table 4.4

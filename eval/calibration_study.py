@@ -1,15 +1,15 @@
-"""The hand-eye study of ``ipbench eval calibration`` (issue 14 §3, thesis ch. 4), synthetic.
+"""The hand-eye study of ``ipbench eval calibration`` (thesis ch. 4), synthetic.
 
 Because a simulation knows the true hand-eye transform ``X``, every calibration can be scored
 against it: the rotation (deg) and translation (mm) error of ``X`` per camera and method
 (:data:`~ipbench.perception.calibration.hand_eye.HAND_EYE_METHODS`), against the number of
 poses and against how far the gripper turns between poses (the rotation diversity; small
-turns break Tsai, as the issue asks to show).
+turns break Tsai, which the study shows).
 
 The study works on poses, not images: the observed ``target_to_camera`` poses carry the noise
-of OpenCV's own hand-eye regression test (``modules/calib3d/test/test_calibration_hand_eye.cpp``,
-facts sheet §2): target 0.002 rad / 5 mm, gripper 0.001 rad / 1 mm, per axis, scaled by the
-config's ``noise_scales``. A rotation is perturbed by ``Exp(n) R``, ``n ~ N(0, σ² I)``, a
+of OpenCV's own hand-eye regression test (``modules/calib3d/test/test_calibration_hand_eye.cpp``):
+target 0.002 rad / 5 mm, gripper 0.001 rad / 1 mm, per axis, scaled by the config's
+``noise_scales``. A rotation is perturbed by ``Exp(n) R``, ``n ~ N(0, σ² I)``, a
 translation by ``N(0, σ² I)`` (OpenCV adds ``N(0, σ²)`` to each Rodrigues component, which
 turns the rotation by as much or, off its axis, by ``sin(θ/2) / (θ/2)`` times less). Whether
 the board is inside the image, and whether the arm reaches a pose, is not modelled.
@@ -19,9 +19,9 @@ angle 0 on the floor, ``assets/scenes/workcell.xml``; the turntable stays at 0):
 
 - ``wrist``: eye in hand, the Xtion on the right arm (:data:`WRIST_RIG`). ``X`` is
   camera-to-flange, the flange frame taken with joint T at 0 (the Xtion is on link B:
-  ``assets/motoman/xtion.xml``), ``|t| = 0.122 m``. The board lies on the work table; the
-  camera presents itself 0.8 m above it, looking down (the Xtion's datasheet near range, facts
-  sheet §1).
+  ``assets/motoman/xtion.xml``), ``|t| = 0.122 m``. The board lies on the work table; the camera
+  presents itself 0.8 m above it, looking down (the near end of the ASUS Xtion datasheet's 0.8-3.5 m
+  range).
 - ``head_left``: eye to hand, the left Nikon of the PTU head at pan = tilt = 0
   (:data:`HEAD_LEFT_RIG`). ``X`` is camera-to-world, the camera 2.362 m above the floor,
   pitched 35.6° down (``assets/motoman/motoman.xml``, ``assets/head/ptu_d46.xml``). The
@@ -85,8 +85,8 @@ TARGET_NOISE = (0.002, 0.005)
 GRIPPER_NOISE = (0.001, 0.001)
 """Gripper-to-base noise per axis (rad, m): OpenCV's hand-eye regression test."""
 TARGETS = {"min_poses": 10, "noise_scale": 0.1, "rotation_deg": 0.02, "translation_mm": 1.5}
-"""Issue 14's hand-eye target: with >= 10 poses at 0.1x OpenCV's noise, <= 0.02° and 1.5 mm."""
-METRICS_POSES, METRICS_NOISE_SCALE = 10, 1.0  # the issue's metrics.json cell
+"""The hand-eye target: with >= 10 poses at 0.1x OpenCV's noise, <= 0.02° and 1.5 mm."""
+METRICS_POSES, METRICS_NOISE_SCALE = 10, 1.0  # the cell metrics.json reports
 _FLAGS = {m: getattr(cv2, f"CALIB_HAND_EYE_{m.upper()}") for m in HAND_EYE_METHODS}
 
 
@@ -197,10 +197,10 @@ def _wrist_rig() -> HandEyeRig:
     # flange face, looking along the tool axis; image x along the flange's y
     X = _transform([[0, -1, 0], [1, 0, 0], [0, 0, 1]], [0.12, 0.0, -0.024])
     # board face up on the work table, corner grid centred on its top (0.95, -0.1, 0.70)
-    # (workcell.xml; CloPeMa table height 0.70 m, robot facts §2.7); z into the table
+    # (workcell.xml; CloPeMa table height 0.70 m, clopema_UG.urdf.xacro); z into the table
     R_Z = np.diag([1.0, -1.0, -1.0])
     Z = _transform(R_Z, np.array([0.95, -0.1, 0.70]) - R_Z @ _board_centre())
-    # camera 0.8 m above the board, looking down (Xtion range 0.8-3.5 m, facts sheet §1)
+    # camera 0.8 m above the board, looking down (Xtion range 0.8-3.5 m, ASUS datasheet)
     nominal = _transform(np.eye(3), np.array([0.0, 0.0, 0.8]) - _board_centre())
     # [EST] the camera stays 0.7-0.9 m from the board, the board near the image centre
     return HandEyeRig("wrist", "eye_in_hand", X, Z, nominal, (0.15, 0.15, 0.10))
@@ -224,7 +224,7 @@ def _head_left_rig() -> HandEyeRig:
         [[0, 0, 1], [0, -1, 0], [1, 0, 0]], [0.0, _board_centre()[1], 0.205 + 2 * square]
     )
     # board facing the camera 1.0 m away, in front of the head in the gripper arm's reach
-    # (MA1400 reach 1.434 m, robot facts §1.4)
+    # (MA1400 reach 1.434 m, Yaskawa datasheet and the CloPeMa DH table)
     nominal = _transform(np.eye(3), np.array([0.0, 0.0, 1.0]) - _board_centre())
     return HandEyeRig("head_left", "eye_to_hand", X, Z, nominal, (0.15, 0.15, 0.15))
 
@@ -242,7 +242,7 @@ def _key(value: float) -> str:
 
 @dataclass(frozen=True)
 class HandEyeStudyConfig:
-    """What the hand-eye study runs (defaults: the issue's study, about 10 s on one core).
+    """What the hand-eye study runs (defaults: the evaluation's, about 10 s on one core).
 
     Attributes
     ----------
@@ -529,11 +529,11 @@ def _cells(study: dict, n: int, scale: float) -> dict:
 
 
 def metrics_view(study: dict) -> dict:
-    """The issue's ``metrics.json`` entries from :func:`run_hand_eye_study`'s result.
+    """The ``metrics.json`` entries from :func:`run_hand_eye_study`'s result.
 
     ``hand_eye[camera][method]`` = ``{"rotation_deg", "translation_mm"}``: medians at 10
     poses and noise scale 1 (None when every trial failed). ``targets["hand_eye"]``: the
-    issue's target (:data:`TARGETS`) and, per camera and method, ``met`` (True when, at
+    target (:data:`TARGETS`) and, per camera and method, ``met`` (True when, at
     every pose count >= 10 at noise scale 0.1, no trial failed and both medians are within
     the target; None when the study has no such cell) with the cells it judged (``by_poses``).
     """

@@ -254,7 +254,7 @@ def render_instance_views(inst: ObjectInstance, config: DatasetConfig) -> ViewSe
     renderer = SensorRenderer(model)
     noise = DepthNoiseModel(config.sensor)
     rng = np.random.default_rng([config.seed, inst.index, CATEGORIES.index(inst.category)])
-    # one sensor unit per capture session (its own stream: v1's noise draws stay as they were)
+    # one sensor unit per capture run (its own stream: rng's draws, which v1 uses, do not move)
     unit = noise.draw_unit(np.random.default_rng([config.seed, inst.index, 7500]))
     h, w = WRIST_SIZE
     k = intrinsics(model, WRIST_CAMERA, w, h)

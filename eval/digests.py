@@ -36,7 +36,7 @@ differs whenever that one does):
 =====================  ======================================================================
 
 The v2 parts (``mjb_v2``, ``render_fixed``'s v2 images, ``episode_v2``) follow Sorting-v2,
-released and frozen since issue 12; the episode stages also follow the policies' code
+released and frozen; the episode stages also follow the policies' code
 (``ipbench.policies.POLICY_VERSION``): regenerate the reference when that changes on purpose.
 
 :func:`run_stages` runs them on one thread (BLAS and OpenMP limited to 1 with threadpoolctl),

@@ -42,10 +42,9 @@ THESIS_FIGURES: tuple[ThesisFigure, ...] = (
     ThesisFigure("3.3", "Nikon D5100 / PTU-D46 head", "kaze", "KAZE", 83.0),
     ThesisFigure("3.3", "Nikon D5100 / PTU-D46 head", None, "SURF", 60.0),
 )
-"""The thesis' exploration performance (Glasgow 2018 PhD thesis, ch. 3, Tables 3.2 and 3.3;
-as recorded in /work/shared/facts/sensor_and_calibration_facts.md §3). SURF is patented and in
-no pip wheel of OpenCV, so we cannot run it; AKAZE and ORB take its place and have no thesis
-figure."""
+"""The thesis' exploration performance (A. Khan, PhD thesis, University of Glasgow, 2018, ch. 3,
+Tables 3.2 and 3.3). SURF is patented and in no pip wheel of OpenCV, so we cannot run it; AKAZE and
+ORB take its place and have no thesis figure."""
 _THESIS_SOURCE = "Glasgow 2018 PhD thesis, ch. 3"
 
 

@@ -65,10 +65,10 @@ def single_thread_worker() -> None:
 
     The BLAS libraries already loaded (numpy's and scipy's OpenBLAS are, by the time a spawned
     worker has unpickled its task) are limited by threadpoolctl for the rest of the process;
-    the variables cover those that load later. Before session 10 only llvmpipe, OpenMP,
-    OpenCV and torch were limited: numpy's OpenBLAS ran its second thread in every worker (a
-    third of a core each, spinning while it waited for work), which slowed every dataset part
-    rendered in a pool (episodes and trainings limited themselves)."""
+    the variables cover those that load later. Limiting only llvmpipe, OpenMP, OpenCV and torch
+    is not enough: numpy's OpenBLAS would run its second thread in every worker (a third of a
+    core each, spinning while it waits for work) and slow every dataset part rendered in a pool
+    (episodes and trainings limit themselves)."""
     for name in ("LP_NUM_THREADS", "OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
         os.environ[name] = "1"  # read when each library starts (torch: OMP_NUM_THREADS)
     import cv2

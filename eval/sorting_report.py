@@ -2,9 +2,9 @@
 
 Input is one JSON record per sorting episode (``episodes.jsonl``, see :func:`load_episodes`)
 with at least ``scene, policy, seed, objects, correct, accuracy, per_category, inspections,
-grasp_failures, wall_time_s, sim_time_s, decisions`` and, since the loss decomposition,
-``losses`` (see :func:`loss_decomposition`; older records without it are read, their cells
-get no decomposition). Output, per scene, is a table laid out like the thesis' Table 5.1
+grasp_failures, wall_time_s, sim_time_s, decisions`` and ``losses`` (see
+:func:`loss_decomposition`; records without ``losses`` are read, their cells get no
+decomposition). Output, per scene, is a table laid out like the thesis' Table 5.1
 (rows = policies, columns = categories as ``correct/total`` summed over seeds, then the
 total), with the spread over seeds as a percentile bootstrap interval of the per-seed mean
 accuracy and a paired sign-flip permutation test of ``gp-ipm`` against ``random`` (episodes

@@ -1,5 +1,5 @@
 """The wrist Xtion's reconstruction of the 24 mm board, in its own frame and in the robot's
-(issue 14, thesis Table 4.4).
+(thesis Table 4.4).
 
 The left arm holds the board face up at the capture's ``wrist_board_centre`` in the *true* cell
 of ``robot_seed`` (:func:`~ipbench.envs.model_errors.sample_model_errors`) and the right arm

@@ -49,7 +49,7 @@ __all__ = [
 ]
 
 FEATURE_TYPES = ("sift", "kaze", "akaze", "orb")
-DEFAULT_MAX_FEATURES = 2000  # per image; a budget for the <= 0.5 s saccade cycle (issue 13)
+DEFAULT_MAX_FEATURES = 2000  # per image; a budget for the <= 0.5 s saccade cycle
 _NORMS = {
     "sift": cv2.NORM_L2,
     "kaze": cv2.NORM_L2,

@@ -57,7 +57,7 @@ def match(query: Features, train: Features, ratio: float = LOWE_RATIO) -> np.nda
     norm = norm_of(query.feature_type)
     # cv2.batchDistance with K = 2 is the exact 2-NN search that cv2.BFMatcher.knnMatch runs
     # (same distance kernels, same order, same distances: Hamming as int32, L2 as float32),
-    # minus the per-match DMatch objects, which made Python the bottleneck (issue 13)
+    # minus the per-match DMatch objects, which make Python the bottleneck
     dtype = cv2.CV_32S if norm == cv2.NORM_HAMMING else cv2.CV_32F  # as BFMatcher
     dist, nidx = cv2.batchDistance(query.descriptors, train.descriptors, dtype, normType=norm, K=2)
     dist = dist.astype(np.float64)  # DMatch.distance is a float32, compared as a Python float

@@ -1,4 +1,4 @@
-"""Splitting a segment that holds several touching objects (issue 12 §1).
+"""Splitting a segment that holds several touching objects.
 
 Euclidean clustering (:mod:`~ipbench.perception.segmentation`) joins objects that touch: in
 the cluttered scene every object stands against a neighbour, and a quarter of the segments

@@ -71,7 +71,7 @@ READS_INFO: frozenset[str] = frozenset({"oracle-gaze"})
 HALT_AFTER = 5
 """Consecutive saccades without an object before the macro script halts (thesis ch. 3)."""
 VERGENCE_GOAL_PX = 2.0
-"""Vergence ends when the fovea's peak disparity is below this (px; issue 13)."""
+"""Vergence ends when the fovea's peak disparity is below this (px)."""
 MAX_VERGE_CYCLES = 3
 """Vergence corrections per attended object at the most."""
 FOVEA_FRACTION = 0.25

@@ -1,4 +1,4 @@
-"""The robot calibrates its cameras in the simulated cell (issue 14; eval/calibrate.py)."""
+"""The robot calibrates its cameras in the simulated cell (eval/calibrate.py)."""
 
 from __future__ import annotations
 

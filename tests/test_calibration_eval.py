@@ -1,4 +1,4 @@
-"""``ipbench eval calibration`` writes the issue's metrics and a report (small configs)."""
+"""``ipbench eval calibration`` writes its metrics and a report (small configs)."""
 
 import json
 
@@ -12,7 +12,7 @@ from ipbench.perception.calibration.hand_eye import HAND_EYE_METHODS
 SMALL = HandEyeStudyConfig(pose_counts=(3, 10), trials=8, diversity_spreads_deg=(2.0, 45.0))
 
 
-def test_metrics_have_the_issues_keys_and_calibration_beats_the_nominal_model(tmp_path):
+def test_metrics_have_every_key_and_calibration_beats_the_nominal_model(tmp_path):
     metrics = run_calibration_eval(tmp_path, seed=2, study=SMALL, poses=6, reconstructions=2)
     on_disk = json.loads((tmp_path / "metrics.json").read_text())
     assert on_disk["hand_eye"] == metrics["hand_eye"]

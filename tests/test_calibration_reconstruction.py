@@ -1,4 +1,4 @@
-"""Reconstruction accuracy of the calibrated cameras (issue 14, thesis Tables 4.2-4.5)."""
+"""Reconstruction accuracy of the calibrated cameras (thesis Tables 4.2-4.5)."""
 
 from __future__ import annotations
 
@@ -93,7 +93,7 @@ def test_wrist_from_noisy_depth_is_worse_than_the_head(with_errors):
 
 def test_exact_cell_reconstructs_the_board_within_the_thesis_figure(exact_cell):
     # no model errors, exact extrinsics: only corner detection on the rendered images is left
-    # (measured 0.12 mm RMSE: the brief's 0.1 mm does not hold; the thesis' 0.2 mm target does)
+    # (about 0.12 mm RMSE: within the thesis' 0.2 mm, not within 0.1 mm)
     head = reconstruct_head(exact_cell, None, seed=1, poses=2)
     errors = head["methods"]["true"]
     assert errors["rmse_mm"] < 0.2

@@ -1,4 +1,4 @@
-"""The hand-eye study of ``ipbench eval calibration`` (issue 14 §3) on a small config.
+"""The hand-eye study of ``ipbench eval calibration`` on a small config.
 
 One small study (both rigs, all five methods, 3/10/20 poses, OpenCV's test noise x1 and x0.1,
 spreads 2° and 45°) is shared by the tests; the noiseless and bad-input tests build their own.
@@ -147,7 +147,7 @@ def test_errors_scale_with_the_noise(study):
                         assert 0.09 < ratio < 0.11, (method, error, n, ratio)
 
 
-def test_issue_targets_at_a_tenth_of_the_noise(study):
+def test_hand_eye_targets_at_a_tenth_of_the_noise(study):
     view = metrics_view(study)["targets"]["hand_eye"]
     assert {k: view[k] for k in TARGETS} == TARGETS
     for camera in CAMERAS:

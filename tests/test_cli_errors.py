@@ -1,5 +1,5 @@
 """Bad command lines end in one line saying what was wrong and what is valid, before any
-work starts; help shows the defaults and the valid names (issue 11). No episode runs here."""
+work starts; help shows the defaults and the valid names. No episode runs here."""
 
 from __future__ import annotations
 

@@ -4,15 +4,16 @@ Synthetic but realistic, pure OpenCV/numpy: three textured planes 0.9-1.2 m in f
 head are rendered exactly (one homography per plane, far to near) into 1024x680 images by
 cameras on the PTU-D46 kinematic chain of ``assets/head/ptu_d46.xml`` (pan axis 0.0468 m above
 the base, tilt axis 0.0449 m above that, optical centre 0.134 m ahead of and 0.0916 m above the
-tilt axis; robot facts §3). f = 35 / 23.6 * 1024 = 1519 px: the head's 35 mm lens on the
-D5100's 23.6 mm sensor (robot facts §4.1, ``ptu_d46.xml``) at 1024 px. The right PTU base is
-0.288 m to the right (the calibrated baseline, robot facts §2.6).
+tilt axis). f = 35 / 23.6 * 1024 = 1519 px: the head's 35 mm lens on the D5100's 23.6 mm
+sensor (``ptu_d46.xml``) at 1024 px. The right PTU base is 0.288 m to the right (the
+calibrated baseline of the CloPeMa description, ``calibration_UG``).
 
 The left PTU pans 3 deg and tilts 2 deg. Its encoders-only pose is the kinematic prediction
 from the encoder deltas; the truth turned 0.1 deg further about the pan axis (two PTU steps of
-0.0514 deg, robot facts §3; the encoder-only update's ±5 px epipolar error of Mohamed et al.
-2018 is 0.19 deg at this focal length). Tolerance of the update, noiseless images: rotation
-< 0.05 deg and camera centre < 1 mm, and at most half the encoders-only rotation error.
+0.0514 deg, PTU-D46 User's Manual v2.14.0 §4.3.3; the encoder-only update's ±5 px epipolar
+error of Mohamed et al. 2018 is 0.19 deg at this focal length). Tolerance of the update,
+noiseless images: rotation < 0.05 deg and camera centre < 1 mm, and at most half the
+encoders-only rotation error.
 """
 
 from __future__ import annotations
@@ -33,7 +34,7 @@ from ipbench.perception.features2d import Features
 W, H = 1024, 680
 F_PX = 35.0 / 23.6 * W  # 1519 px
 K = np.array([[F_PX, 0.0, (W - 1) / 2], [0.0, F_PX, (H - 1) / 2], [0.0, 0.0, 1.0]])
-BASELINE = 0.288  # m, robot facts §2.6
+BASELINE = 0.288  # m, CloPeMa calibration_UG
 PAN_Z, TILT_Z = 0.0468, 0.0449  # m, ptu_d46.xml
 CAMERA_IN_TILT = np.array([0.134, 0.0, 0.0916])  # m, ptu_d46.xml
 # OpenCV camera axes in the tilt link: the camera looks along the link's +x, image x = -y
@@ -193,7 +194,7 @@ def synthetic_features(rng, pose, points, descriptors, dist, noise_px=0.3):
 
 
 def test_distortion_and_outliers_from_features():
-    """Features without images: 300 points 0.8-1.5 m away (facts §2's PnP setting), observed
+    """Features without images: 300 points 0.8-1.5 m away, observed
     through a barrel-distorted lens with 0.3 px noise, 30 % of the after-move matches wrong."""
     rng = np.random.default_rng(3)
     n = 300

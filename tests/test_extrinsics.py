@@ -1,4 +1,4 @@
-"""The envs' ``extrinsics`` option (issue 14 part 5): what the robot knows of its cameras."""
+"""The envs' ``extrinsics`` option: what the robot knows of its cameras."""
 
 from __future__ import annotations
 

@@ -161,7 +161,7 @@ def test_published_products_inside_ranges():
     assert spec["milk_carton", "gable_2l"].footprint_mm[0] <= 3.75 * 25.4 <= 102
     assert spec["milk_carton", "gable_2l"].height_mm[0] <= 9.5 * 25.4 <= 265  # 241 mm
     assert spec["milk_carton", "gable_half_l"].height_mm[0] <= 5.6 * 25.4 <= 150
-    # Tetra Brik Aseptic 200 Base 63 x 40 x 88 and Slim 53 x 38 x 110 (facts §6)
+    # Tetra Brik Aseptic 200 Base 63 x 40 x 88 and Slim 53 x 38 x 110 [EST]
     assert spec["juice_box", "brik_200"].footprint_mm == (53, 63)
     assert spec["juice_box", "brik_200"].height_mm == (88, 110)
     boxes = instances(catalog="v2", family="brik_200")
@@ -171,7 +171,7 @@ def test_published_products_inside_ranges():
     assert len(prisma) >= 1 and spec["juice_box", "prisma"].nominal_ml == (250, 330)
     one_litre = instances(catalog="v2", family="brik_1l")
     assert all(1000 * ML <= capacity(i.shape) <= 1100 * ML for i in one_litre)
-    # 0.5 L PET Ø 65-70 and 1 L PET Ø 80-90 (facts §6) inside the round PET range
+    # 0.5 L PET Ø 65-70 and 1 L PET Ø 80-90 [EST] inside the round PET range
     assert spec["juice_bottle", "round_pet"].footprint_mm == (65, 90)
     # the squat 500 ml glass juice bottle 185 x Ø 78 scaled by 0.5^(1/3): 147 x 62 mm
     glass = spec["juice_bottle", "glass_short"]
@@ -284,9 +284,9 @@ def test_resting_poses_settle(inst):
 # for short objects (TOP_MARGIN 25 mm plus the skill's grasp_depth 20 mm), not top - 25 mm as
 # it means to: for bowls taller than ~80 mm (noodle bowls) the finger boxes behind the pads
 # meet the flared rim and the pads never touch it. Traced on noodle bowls 16-23: 1 of 8 picked
-# at the sorter's point, 8 of 8 at the intended one. The sorter is released behaviour (v0/v1)
-# and grasp planning for every policy is a later issue's, so a failed pick is retried once at
-# the intended rim grasp: what is tested here is that the object can be grasped.
+# at the sorter's point, 8 of 8 at the intended one. The sorter is released behaviour (v0/v1), so a
+# failed pick is retried once at the intended rim grasp: what is tested here is that the object can
+# be grasped.
 @pytest.mark.parametrize("inst", FIRST, ids=lambda i: i.name)
 def test_scripted_pick_puts_it_in_its_bin(inst):
     gym = pytest.importorskip("gymnasium")
@@ -369,7 +369,7 @@ def test_v1_bit_identical_to_recorded_digests():
     """Every v1 object's parameters and MJCF equal the recorded ones everywhere; its meshes'
     mass properties and the compiled model are bit-exact only on a platform whose numeric
     kernels match the recording one's (on an AMD Zen 5 whose OpenBLAS runs its Haswell
-    kernels they differ in the last bits, at db6e006 as now), so a difference there skips,
+    kernels they differ in the last bits), so a difference there skips,
     naming the objects."""
     recorded = json.loads(DIGESTS.read_text())
     assert len(recorded) == 60

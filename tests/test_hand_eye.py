@@ -1,8 +1,8 @@
 """Hand-eye calibration (thesis ch. 4, Fig. 4.4) on synthetic poses, and the pose helpers.
 
-The data are exact: a random true X (and target pose), random gripper poses with diverse
-rotations, and target-to-camera poses derived from them, so every OpenCV method must recover X
-to 1e-8 as in OpenCV's own regression test (facts sheet §2). The noise levels of that test
+The data are exact: a random true X (and target pose), random gripper poses with diverse rotations,
+and target-to-camera poses derived from them, so every OpenCV method must recover X to 1e-8 as in
+OpenCV's own regression test (``test_calibration_hand_eye.cpp``). The noise levels of that test
 (gripper 0.001 rad / 1 mm, target 0.002 rad / 5 mm) are used where noise is needed.
 """
 

@@ -1,4 +1,4 @@
-"""No seed fails to lay out, and the seeds that always did keep their layouts (issue 11).
+"""No seed fails to lay out, and the seeds the scene procedure places keep their recorded layouts.
 
 Layout only: no world is built, nothing rendered or stepped (but one ``reset``). Episode seeds
 become layout seeds as ``SortingEnv.reset`` draws them (:func:`layout_seed`).
@@ -42,12 +42,12 @@ SEED_RANGES: dict[tuple[str, str], int] = {
     ("v2", "cluttered"): 100,
 }
 """Episode seeds 0 .. N-1 tested per (catalogue, scene). The released ids' catalogue (v1):
-0-2999, as issue 11 asks (about 3 and 14 ms a seed; cluttered 138 is the one seed that used to
-fail). v2 (under development) on fewer seeds, to keep the file near a minute: its cluttered
-pile costs about 45 ms a seed, because a v2 pile often does not fit and about 10 of a seed's 11
-placement attempts fail, each after 300 tries of its last object; those draws are what fixes
-today's layouts, so they stay. Episode seeds 0-2999 of both v2 scenes were scanned once when
-the fallback was added (about 3 minutes): every one lays out without it."""
+0-2999 (about 3 and 14 ms a seed; cluttered 138 is the one seed the scene procedure cannot
+place). v2 on fewer seeds, to keep the file near a minute: its cluttered pile costs about 45 ms
+a seed, because a v2 pile often does not fit and about 10 of a seed's 11 placement attempts
+fail, each after 300 tries of its last object; those draws fix the recorded layouts, so they
+stay. Episode seeds 0-2999 of both v2 scenes lay out without the fallback (a scan of about 3
+minutes, not run here)."""
 
 
 def layout_seed(episode_seed: int) -> int:
@@ -129,8 +129,8 @@ def test_layouts_of_seeds_that_always_laid_out_are_unchanged(key):
     assert [digest(_layout(scene, s, catalog)) for s in range(len(expected))] == expected
 
 
-def test_the_seed_sorting_v1_could_not_place_now_lays_out():
-    """Cluttered episode seed 138 raised LayoutError after 50 attempts; it now gets further
+def test_the_seed_the_procedure_cannot_place_gets_a_frozen_fallback_layout():
+    """Cluttered episode seed 138 fails the scene procedure's 50 attempts; it gets further
     attempts from a stream of its own, and its layout is frozen like any other's."""
     scene = SCENES["cluttered"]
     a, b = _layout("cluttered", 138), _layout("cluttered", 138)
@@ -176,9 +176,9 @@ def test_a_scene_that_cannot_fit_says_what_to_change():
         sample_layout(tiny, 0, AREA.center, AREA.half, PLACES.table_height)
 
 
-def test_reset_with_the_seed_that_failed():
-    """``reset(seed=138)`` of the cluttered scene (released ids) no longer raises, and lays out
-    what :func:`layout_seed` says."""
+def test_reset_with_a_seed_the_procedure_cannot_place():
+    """``reset(seed=138)`` of the cluttered scene (released ids), which only the fallback lays
+    out, does not raise and lays out what :func:`layout_seed` says."""
     import gymnasium as gym
 
     import ipbench.envs  # noqa: F401  (registers the environments)

@@ -16,11 +16,11 @@ from ipbench.envs.lens_distortion import (
 )
 from ipbench.perception.calibration.target import Checkerboard, find_corners
 
-# head: D5100 + 35 mm rendered at 1024 x 680 (f = 7308 px at 4928 px wide, robot_facts §4.1)
+# head: D5100 + 35 mm rendered at 1024 x 680 (f = 7308 px at 4928 px over 23.6 mm)
 HEAD_SIZE = (1024, 680)
 HEAD_F = 7308.0 * 1024 / 4928
 HEAD_K = np.array([[HEAD_F, 0, 511.5], [0, HEAD_F, 339.5], [0, 0, 1.0]])
-# wrist: the Glasgow Xtion RGB calibration at 640 x 480 (robot_facts §4.2)
+# wrist: the Glasgow Xtion RGB calibration at 640 x 480 (calibration_UG/xtion1_rgb_camera.yaml)
 XTION_SIZE = (640, 480)
 XTION_K = np.array([[540.884, 0, 322.650], [0, 539.125, 239.429], [0, 0, 1.0]])
 BOARD = Checkerboard()
@@ -122,7 +122,7 @@ def test_image_corner_moves_as_the_model_says(k, size, distortion):
     ],
 )
 def test_undistort_restores_the_ideal_image(k, size, distortion, pose):
-    """The issue's test: distort, then cv2.undistort with the same K and coefficients."""
+    """The round trip: distort, then cv2.undistort with the same K and coefficients."""
     ideal = checkerboard_image(k, size, *pose)
     distorted = distort_image(ideal, k, distortion)
     restored = cv2.undistort(distorted, k, distortion.coefficients)

@@ -1,4 +1,4 @@
-"""The per-episode loss decomposition (issue 12 §3): where the objects not sorted right were
+"""The per-episode loss decomposition: where the objects not sorted right were
 lost — to labels (the aimed object, into a wrong bin) or to handling (another object into a
 wrong bin, dropped, left) — in the episode records, ``summary.json`` and ``sorting.md``."""
 

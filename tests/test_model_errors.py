@@ -259,14 +259,14 @@ def test_sampled_spread_matches_error_scales():
 def test_error_scales_follow_their_sources():
     for key, scale in ERROR_SCALES.items():
         assert scale.value > 0 and scale.unit in ("m", "rad", "px") and scale.source, key
-    # issue 14: hand-eye mounting "a few mm and tenths of a degree" (mean magnitude of a 3-D
-    # normal vector = 2 sqrt(2 / pi) sigma)
+    # chosen hand-eye mounting error: "a few mm and tenths of a degree" (mean magnitude of a
+    # 3-D normal vector = 2 sqrt(2 / pi) sigma)
     mean_norm = 2.0 * math.sqrt(2.0 / math.pi)
     assert 2e-3 <= mean_norm * ERROR_SCALES["camera_mount_translation"].value <= 5e-3
     assert 0.1 <= math.degrees(mean_norm * ERROR_SCALES["camera_mount_rotation"].value) < 1.0
-    # robot_facts.md §2.6: Glasgow right PTU vs left, nominal (0, -0.30, 0) m, rpy 0; calibrated
-    # (0.041, -0.285, 0.004) m, rpy (-2.7, 0.3, -1.7) deg: per-axis RMS of the relative error,
-    # shared by two independent bases
+    # CloPeMa description (gerac83/ug_bluerobot): Glasgow right PTU vs left, nominal
+    # (0, -0.30, 0) m, rpy 0; calibrated (0.041, -0.285, 0.004) m, rpy (-2.7, 0.3, -1.7) deg:
+    # per-axis RMS of the relative error, shared by two independent bases
     rms_m = math.sqrt((0.041**2 + 0.015**2 + 0.004**2) / 3)
     rms_deg = math.sqrt((2.7**2 + 0.3**2 + 1.7**2) / 3)
     assert ERROR_SCALES["ptu_base_translation"].value == pytest.approx(rms_m / math.sqrt(2))

@@ -67,7 +67,7 @@ def test_visual_and_collision_classes_are_separate():
 
 
 def test_flange_matches_clopema_forward_kinematics():
-    """At q = 0 the left flange is where CloPeMa's URDF puts r2's (facts sheet, section 2.3)."""
+    """At q = 0 the left flange is where CloPeMa's URDF puts r2's (``clopema_UG.urdf.xacro``)."""
     model = compose.build_robot_spec().compile()
     data = mujoco.MjData(model)
     mujoco.mj_kinematics(model, data)

@@ -1,4 +1,4 @@
-"""The ``pile`` scene of Sorting-v2 (issue 12 §2): twenty objects of every family, piled.
+"""The ``pile`` scene of Sorting-v2: twenty objects of every family, piled.
 
 Layout only (no world built) but for the settling tests, which reset the environment; the
 invariant battery of ``test_envs.py`` runs over ``ipbench/SortingPile-v2`` too (it is a

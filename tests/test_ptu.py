@@ -15,7 +15,7 @@ def test_numbers_match_the_facts_sheet():
     # 185.1428 arc-sec = 0.0514 deg per position (PTU-D46 User's Manual v2.14.0 §4.3.3)
     assert math.degrees(STEP_RAD) == pytest.approx(0.0514, abs=5e-5)
     assert spec.step == STEP_RAD
-    # limits pan +-158.9 deg, tilt -31.1 / +46.6 deg (ptu_d46.xml, facts §3)
+    # limits pan +-158.9 deg, tilt -31.1 / +46.6 deg (ptu_d46.xml; PTU-D46 User's Manual §4.3.4)
     np.testing.assert_allclose(np.degrees(spec.lower), [-158.9, -31.1], atol=1e-9)
     np.testing.assert_allclose(np.degrees(spec.upper), [158.9, 46.6], atol=1e-9)
     # speeds pan 300 deg/s, tilt 60 deg/s (the XML's user attributes)

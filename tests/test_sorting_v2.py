@@ -1,4 +1,4 @@
-"""Sorting-v2 (released by issue 12): the v2 objects and the structured-light sensor, behind
+"""Sorting-v2: the v2 objects and the structured-light sensor, behind
 the same contract as v1 (the battery in test_envs.py runs over every id, v2 included)."""
 
 from __future__ import annotations
@@ -28,7 +28,7 @@ def _layout(scene: str, seed: int, catalog: str = "v2"):
 
 
 def test_v2_ids_are_registered_released_and_configured():
-    assert not set(V2_IDS) & set(UNDER_DEVELOPMENT)  # released by issue 12
+    assert not set(V2_IDS) & set(UNDER_DEVELOPMENT)  # released
     for env_id in V2_IDS:
         assert env_id in ipbench.envs.ENV_IDS and env_id in gym.registry
         config = env_config(env_id)

@@ -17,9 +17,9 @@ from ipbench.perception.stereo import (
     projection_matrix,
 )
 
-BASELINE = 0.29  # the head's calibrated ~0.288 m (robot facts §2.6)
+BASELINE = 0.29  # the head's calibrated ~0.288 m (CloPeMa calibration_UG)
 # 18 mm (the kit lens' wide end, the worst depth resolution) on the D5100's 23.6 mm sensor,
-# 1024 px wide: 18 / 23.6 * 1024 = 781 px (robot facts §4.1)
+# 1024 px wide: 18 / 23.6 * 1024 = 781 px
 F_PX = 781.0
 K = np.array([[F_PX, 0, 511.5], [0, F_PX, 339.5], [0, 0, 1.0]])
 

@@ -1,14 +1,15 @@
 """Stereo extrinsics of the head: eq. 4.7 averaged over views, then bundle adjustment.
 
-A synthetic rig after the CloPeMa head (facts sheets): the right camera's centre sits
-(0.285, -0.004, 0.041) m from the left one in the left camera frame, the calibrated UG offset
-(robot facts §2.6, right PTU base relative to the left: x 0.041 forward, y -0.285 left,
-z 0.004 up, mapped to camera axes x right, y down, z forward; baseline 0.288 m), with the
-calibrated relative rpy (-2.7°, 0.3°, -1.7°) on top of verging at a point 1.3 m ahead; both
-Nikon D5100s in preview mode (1232 x 816 px, a quarter of 4928 x 3264) with the 18 mm kit
-lens, f = 3759 / 4 px (robot facts §4.1), and the lens distortion measured on the cell's
-xtion1 (robot facts §4.2) as a realistic plumb-bob model; the thesis' board of 24 mm squares
-(9 x 6 inner corners) at 1.0-1.6 m; corner noise 0.2 px (the brief of issue 14).
+A synthetic rig after the CloPeMa head (gerac83/ug_bluerobot ``clopema_description``): the
+right camera's centre sits (0.285, -0.004, 0.041) m from the left one in the left camera frame,
+the calibrated UG offset (``calibration_UG``, right PTU base relative to the left: x 0.041
+forward, y -0.285 left, z 0.004 up, mapped to camera axes x right, y down, z forward; baseline
+0.288 m), with the calibrated relative rpy (-2.7°, 0.3°, -1.7°) on top of verging at a point
+1.3 m ahead; both Nikon D5100s in preview mode (1232 x 816 px, a quarter of 4928 x 3264) with
+the 18 mm kit lens, f = 3759 / 4 px (4928 px over 23.6 mm), and the lens distortion measured on
+the cell's xtion1 (``calibration_UG/xtion1_rgb_camera.yaml``) as a realistic plumb-bob model;
+the thesis' board of 24 mm squares (9 x 6 inner corners) at 1.0-1.6 m; corner noise 0.2 px
+[EST].
 """
 
 from __future__ import annotations

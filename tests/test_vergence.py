@@ -17,7 +17,7 @@ from ipbench.perception.vergence import (
 
 W, H = 1024, 680
 K = np.array([[1518.0, 0.0, (W - 1) / 2], [0.0, 1518.0, (H - 1) / 2], [0.0, 0.0, 1.0]])
-# 1518 px: a 35 mm lens on the D5100's 23.6 mm sensor at 1024 px width (robot facts §4.1)
+# 1518 px: a 35 mm lens on the D5100's 23.6 mm sensor at 1024 px width
 
 
 def texture(rows: int = 9, cols: int = 10, seed: int = 100) -> np.ndarray:
@@ -80,7 +80,7 @@ def _project(pose: np.ndarray, points: np.ndarray) -> np.ndarray:
 
 
 def test_vergence_iterations_converge_below_two_pixels(wall):
-    depth, baseline = 1.5, 0.29  # the head's ~0.29 m baseline (robot facts §2.6)
+    depth, baseline = 1.5, 0.29  # the head's ~0.29 m baseline (CloPeMa calibration_UG)
     left_pose = np.eye(4)
     right_pose = np.eye(4)
     right_pose[:3, 3] = (baseline, 0.0, 0.0)

@@ -1,4 +1,4 @@
-"""The wrist Xtion's board corners in the robot frame (issue 14, thesis Table 4.4)."""
+"""The wrist Xtion's board corners in the robot frame (thesis Table 4.4)."""
 
 from __future__ import annotations
 

@@ -130,7 +130,7 @@ def _bottle(rng: np.random.Generator, spec: FamilySpec, glass: bool) -> Sample:
             cap_r, cap_h = neck_r + 0.0015, rng.uniform(0.012, 0.016)
             frac = rng.uniform(0.10, 0.22)
         else:
-            t = (nominal / _ML - 500.0) / 500.0  # 0.5 L: Ø 65-70, 1 L: Ø 80-90 (facts §6)
+            t = (nominal / _ML - 500.0) / 500.0  # 0.5 L: Ø 65-70, 1 L: Ø 80-90 (families.py)
             r = rng.uniform(0.0325 + 0.0075 * t, 0.035 + 0.010 * t)
             cap_r = rng.uniform(0.0145, 0.0195)
             neck_r, cap_h = cap_r - 0.0015, rng.uniform(0.014, 0.022)

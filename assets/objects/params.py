@@ -2,7 +2,8 @@
 
 Each category has a frozen dataclass of dimensions (metres). A sampler draws one from a
 :class:`numpy.random.Generator` together with the mass (kg), the colours (RGBA in [0, 1]) and
-whether the surface is glazed. Ranges follow the project's facts sheet:
+whether the surface is glazed. Ranges are typical household sizes (engineering estimates; the
+sourced v2 families are in :mod:`ipbench.assets.objects.families`):
 
 * juice bottle (PET): diameter 65-90 mm, height 200-290 mm with the cap, filled 0.5-1.05 kg.
   The filled mass is drawn uniformly, then diameter and proportions are drawn until the

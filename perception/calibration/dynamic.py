@@ -11,7 +11,7 @@ The right camera follows from the kinematic chain (:func:`right_from_chain`).
 
 Why a homography and not a fundamental matrix: a PTU move is nearly a pure rotation about
 the camera (the optical centre sits 0.134 m ahead of and 0.092 m above the tilt axis,
-``assets/head/ptu_d46.xml``, robot facts §3), so the translation is a few cm at most. For a
+``assets/head/ptu_d46.xml``), so the translation is a few cm at most. For a
 pure rotation the before/after views are related by the homography ``K R K^-1`` whatever the
 depths, whereas the fundamental matrix ``K^-T [t]x R K^-1`` vanishes as ``t -> 0``: its
 estimate is degenerate and RANSAC would accept mismatches. The small translation leaves
@@ -19,7 +19,7 @@ parallax ``f |t| (1/z_near - 1/z_far)``: 4 px for a 3 deg pan and 2 deg tilt (th
 moves 9.6 mm) at f = 1519 px over 0.9-1.2 m, 13 px for 10 deg and 5 deg. The homography
 threshold (:data:`HOMOGRAPHY_PX` = 10 px) is therefore a gross filter only (raise it for large
 moves close to the scene); the pose's precision comes from PnP's own RANSAC threshold
-(:data:`PNP_PX` = 2 px, four times the 0.5 px feature noise of the facts sheet §2) and the
+(:data:`PNP_PX` = 2 px, four times a 0.5 px feature noise) and the
 refinement.
 
 Settings chosen from the geometry above, not tuned on any result: :data:`EPIPOLAR_PX` = 2 px

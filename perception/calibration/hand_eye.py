@@ -16,7 +16,7 @@ a constant ``Z`` (the target in the base frame, or in the gripper frame), and ev
 poses ``i < j`` gives one motion ``A X = X B`` with ``A = robot[j]^-1 robot[i]`` and
 ``B = target_to_camera[j] target_to_camera[i]^-1`` (Tsai & Lenz 1989, eqs. 6-7).
 
-OpenCV pitfalls handled here (facts sheet §2):
+OpenCV pitfalls handled here:
 
 - the method must be passed as ``method=``: as the 5th positional argument it lands on an
   output array and Tsai runs silently (opencv PR #28074);
