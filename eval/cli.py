@@ -33,6 +33,7 @@ from ipbench.eval.cli_exploration import (
     main_exploration,
 )
 from ipbench.eval.cli_options import add_json_option
+from ipbench.eval.docs_report import add_report_parser, main_report
 
 __all__ = ["main", "build_parser"]
 
@@ -60,8 +61,20 @@ def _valid_names() -> dict[str, tuple[str, ...]]:
 
 
 class _HelpFormatter(argparse.ArgumentDefaultsHelpFormatter):
-    """Shows each option's default (not None or a flag's False) and fills the lists of valid
-    names (``{SCENES}``, ``{POLICIES}``, ... of :func:`_valid_names`) into help texts."""
+    """Shows each option's default (not None or a flag's False), fills the lists of valid
+    names (``{SCENES}``, ``{POLICIES}``, ... of :func:`_valid_names`) into help texts, and
+    wraps each line of a description or epilog on its own: an epilog ``example: COMMAND``
+    shows the command whole on the last line."""
+
+    def _fill_text(self, text: str, width: int, indent: str) -> str:
+        lines = []
+        for line in text.splitlines():
+            head, example, command = line.partition("example: ")
+            if example and not head.strip():
+                lines += [f"{indent}example:", f"{indent}  {command.strip()}"]
+            else:
+                lines.append(super()._fill_text(line, width, indent) if line.strip() else "")
+        return "\n".join(lines)
 
     def _get_help_string(self, action: argparse.Action) -> str:
         text = action.help or ""
@@ -113,6 +126,8 @@ def build_parser() -> argparse.ArgumentParser:
             "dual-arm work cell. A robot sorts household objects into bins, and may pick an "
             "object up to look at it again before it decides."
         ),
+        epilog="example: ipbench eval sorting --scenes uncluttered --policies random,gp-ipm "
+        "--seeds 0:5",
     )
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
 
@@ -121,6 +136,7 @@ def build_parser() -> argparse.ArgumentParser:
         help="run a scripted sorting episode per scene (ground-truth labels), write MP4s",
         description="Scripted sorting with ground-truth labels: one episode per scene, an MP4 "
         "from the overview camera and demo_summary.json in --out.",
+        epilog="example: ipbench demo --out results/demo --scenes uncluttered",
     )
     demo.add_argument("--out", type=Path, default=Path("results"), help="output folder")
     demo.add_argument(
@@ -131,7 +147,12 @@ def build_parser() -> argparse.ArgumentParser:
 
     add_calibrate(sub)
 
-    evaluate = sub.add_parser("eval", help="benchmark evaluations that write reports")
+    evaluate = sub.add_parser(
+        "eval",
+        help="benchmark evaluations that write reports",
+        description="Benchmark evaluations; each writes a report folder (--out).",
+        epilog="example: ipbench eval perception --classifiers gp,svm --out results/perception",
+    )
     eval_sub = evaluate.add_subparsers(dest="target", required=True, metavar="TARGET")
     perception = eval_sub.add_parser(
         "perception",
@@ -139,7 +160,10 @@ def build_parser() -> argparse.ArgumentParser:
         description="Renders (or loads from --cache) views of every object instance, fits "
         "the FPFH codebook, trains the classifiers on the known instances and evaluates them "
         "on the unknown ones and on cluttered-scene segments; writes metrics.json, "
-        "perception.md and figures to --out.",
+        "perception.md and figures to --out. A classifier of your own is named "
+        "module:attribute (docs/custom.md).",
+        epilog="example: ipbench eval perception --classifiers "
+        "gp,svm,examples.my_classifier:LogisticClassifier --out results/perception",
     )
     _add_env_option(perception)
     perception.add_argument(
@@ -147,7 +171,8 @@ def build_parser() -> argparse.ArgumentParser:
         default=None,
         help="comma-separated classifiers to compare (default: all of gp, gp_mode, svm, "
         "sklearn_gp, pointnet_ensemble; scikit-learn's GP is cubic in the training views: "
-        "minutes on v2's 3,800)",
+        "minutes on v2's 3,800), and classifiers of your own as module:attribute, e.g. "
+        "examples.my_classifier:LogisticClassifier",
     )
     perception.add_argument(
         "--out", type=Path, default=Path("results/perception"), help="report folder"
@@ -166,7 +191,10 @@ def build_parser() -> argparse.ArgumentParser:
         "cached too; --threshold sets it, --thresholds runs each such policy at several. "
         "Each finished episode is "
         "appended to OUT/episodes.jsonl, so an interrupted run resumes where it stopped. "
-        "Writes OUT/summary.json, OUT/sorting.md, plots and (--video) MP4s.",
+        "Writes OUT/summary.json, OUT/sorting.md, plots and (--video) MP4s. A policy of your "
+        "own is named module:attribute (docs/custom.md).",
+        epilog="example: ipbench eval sorting --scenes uncluttered --policies "
+        "random,gp-ipm,examples.my_policy:LargestFirst --seeds 0:5 --workers 2",
     )
     sorting.add_argument(
         "--scenes", default="uncluttered,cluttered", help="comma-separated scenes of {SCENES}"
@@ -179,7 +207,8 @@ def build_parser() -> argparse.ArgumentParser:
         "deep ensemble's confidences), oracle-inspect (inspects exactly the objects whose "
         "first label is wrong), random-inspect@P (inspects a fraction P at random), oracle "
         "(true label of the object held; v2), oracle-scene (true label of the segment aimed "
-        "at); a confidence-driven policy at threshold T: gp-ipm@T",
+        "at); a confidence-driven policy at threshold T: gp-ipm@T; a policy of your own as "
+        "module:attribute, e.g. examples.my_policy:LargestFirst",
     )
     sorting.add_argument(
         "--threshold",
@@ -251,6 +280,7 @@ def build_parser() -> argparse.ArgumentParser:
         description="For every scene and policy both runs ran: accuracy of each on their "
         "common seeds, failed grasps, and OTHER - BASE paired over seeds (bootstrap interval, "
         "sign-flip p). Prints a markdown table; --json writes the rows.",
+        epilog="example: ipbench eval compare results/sorting results/sorting-calibrated",
     )
     compare.add_argument("base", type=Path, help="folder of `ipbench eval sorting --out BASE`")
     compare.add_argument("other", type=Path, help="folder of the run compared with BASE")
@@ -262,17 +292,24 @@ def build_parser() -> argparse.ArgumentParser:
         help="the README's pictures of an env's objects and sensor",
         description="Renders every object family of the env's catalogue (objects_<v>.png) and "
         "a cluttered wrist view: RGB, ideal and sensor depth (depth_<v>.png), into --out.",
+        epilog="example: ipbench figures --env ipbench/Sorting-v2 --out assets",
     )
     _add_env_option(figures, "ipbench/Sorting-v2")
     figures.add_argument("--out", type=Path, default=Path("assets"), help="output folder")
 
-    bench = sub.add_parser("bench", help="speed benchmarks that print figures")
+    bench = sub.add_parser(
+        "bench",
+        help="speed benchmarks that print figures",
+        description="Speed benchmarks; each prints its figures (--json also writes them).",
+        epilog="example: ipbench bench sim --scene cluttered --json sim.json",
+    )
     bench_sub = bench.add_subparsers(dest="target", required=True, metavar="TARGET")
     sim = bench_sub.add_parser(
         "sim",
         help="physics, rendering, skill and reset speed of the sorting scene",
         description="Physics steps/s (vs raw mj_step), wrist RGB-D fps at 640x480, head "
         "stereo fps, pick-and-place skill wall time, reset time.",
+        epilog="example: ipbench bench sim --scene cluttered --json sim.json",
     )
     _add_env_option(sim)
     sim.add_argument("--scene", default="uncluttered", help="scene to measure, one of {SCENES}")
@@ -283,6 +320,7 @@ def build_parser() -> argparse.ArgumentParser:
         description="Per cluttered 640x480 observation: segmentation, FPFH + bag-of-words and "
         "classification seconds (one core); GP and scikit-learn GP fit seconds on ~1,500 "
         "256-d training vectors.",
+        epilog="example: ipbench bench perception --json perception.json",
     )
     add_json_option(bench_perception)
     bench_eval = bench_sub.add_parser(
@@ -290,9 +328,12 @@ def build_parser() -> argparse.ArgumentParser:
         help="sorting episodes per minute for each policy with 1 and 2 workers",
         description="Runs a few cluttered episodes per policy serially and with 2 worker "
         "processes and prints episodes/minute (models from --cache, trained if missing).",
+        epilog="example: ipbench bench eval --policies random,gp-ipm --episodes 4",
     )
     bench_eval.add_argument(
-        "--policies", default="random,gp-ipm", help="comma-separated policies to time: {POLICIES}"
+        "--policies",
+        default="random,gp-ipm",
+        help="comma-separated policies to time: {POLICIES}, or module:attribute",
     )
     bench_eval.add_argument(
         "--episodes",
@@ -306,7 +347,10 @@ def build_parser() -> argparse.ArgumentParser:
     )
     add_json_option(bench_eval)
     add_bench_exploration(bench_sub)
-    add_check_parser(sub)
+    check = add_check_parser(sub)
+    check.epilog = check.epilog or "example: ipbench check --json check.json"
+    report = add_report_parser(sub)
+    report.epilog = report.epilog or "example: ipbench report docs --from results"
     return parser
 
 
@@ -374,16 +418,23 @@ def _print_figures(figures: dict, json_arg: str | None, report) -> None:
 def _classifiers(args) -> dict:
     """``{"classifiers": (...)}`` from ``--classifiers``, checked; ``{}`` without it."""
     from ipbench.eval.perception import EVAL_CLASSIFIERS as CLASSIFIERS
+    from ipbench.perception.classifiers import ClassifierError, check_classifier_name
 
     if args.classifiers is None:
         return {}
     names = tuple(n.strip() for n in args.classifiers.split(",") if n.strip())
-    bad = [n for n in names if n not in CLASSIFIERS]
+    bad = [n for n in names if n not in CLASSIFIERS and ":" not in n]
     if bad or not names:
         raise SystemExit(
             f"ipbench: unknown classifier(s) {', '.join(bad) or '(none)'}; "
-            f"valid: {', '.join(CLASSIFIERS)}"
+            f"valid: {', '.join(CLASSIFIERS)}, or your own as module:attribute (e.g. "
+            "mypkg.models:MyClassifier, see docs/custom.md)"
         )
+    try:  # a classifier of the user's own: imported and checked before any work
+        for name in names:
+            check_classifier_name(name, CLASSIFIERS)
+    except ClassifierError as err:
+        raise SystemExit(f"ipbench: {err}") from err
     return {"classifiers": names}
 
 
@@ -406,6 +457,8 @@ def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     if args.command == "check":
         return main_check(args)
+    if args.command == "report":
+        return main_report(args)
     if args.command == "calibrate":
         return main_calibrate(args)
     if args.command == "demo":

@@ -24,9 +24,10 @@ def add_calibrate(sub) -> argparse.ArgumentParser:
         "intrinsics (cv2.calibrateCamera), the hand-eye transforms (all five methods of "
         "cv2.calibrateHandEye; the file keeps the one with the smallest residual), and the "
         "head's stereo transform (eq. 4.7 and bundle adjustment). Writes FILE (JSON).",
+        epilog="example: ipbench calibrate --out calibration.json --cameras wrist --poses 10",
     )
     p.add_argument("--out", type=Path, required=True, help="calibration file to write (JSON)")
-    p.add_argument("--cameras", default="head,wrist", help="comma-separated: head, wrist")
+    p.add_argument("--cameras", default="head,wrist", help="comma-separated of: head, wrist")
     p.add_argument("--poses", type=int, default=15, help="board views per camera group (>= 3)")
     p.add_argument("--seed", type=int, default=0, help="seed of the pose sampling")
     p.add_argument(
@@ -101,6 +102,7 @@ def add_eval_calibration(eval_sub) -> argparse.ArgumentParser:
         "poses, OpenCV's test noise and a tenth of it, rotation diversity), and the simulated "
         "cell with seeded model errors calibrating itself (nominal vs calibrated X against the "
         "truth). Writes OUT/metrics.json and OUT/calibration.md.",
+        epilog="example: ipbench eval calibration --out results/calibration --seed 0",
     )
     p.add_argument("--out", type=Path, default=Path("results/calibration"), help="report folder")
     p.add_argument("--seed", type=int, default=0, help="seed of the trials and pose sampling")

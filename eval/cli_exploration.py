@@ -37,6 +37,8 @@ def add_eval_exploration(eval_sub) -> argparse.ArgumentParser:
         "cached in --cache. Each finished episode is appended to OUT/episodes.jsonl, so an "
         "interrupted run resumes. Writes OUT/summary.json, OUT/exploration.md, OUT/recall.png "
         "and (--video) MP4s of the left head view.",
+        epilog="example: ipbench eval exploration --scenes simple --policies "
+        "active-vision,random-gaze --seeds 0:3",
     )
     p.add_argument(
         "--scenes", default="simple,medium,complex", help="comma-separated scenes: {LEVELS}"
@@ -70,6 +72,7 @@ def add_bench_exploration(bench_sub) -> argparse.ArgumentParser:
         description="Complex scene at 1024x680, one core: stereo pairs/s, and the "
         "active-vision policy's cycle (render pair, features, recognition, stereo, decision) "
         "per feature type (databases from --cache, captured if missing).",
+        epilog="example: ipbench bench exploration --features sift,orb",
     )
     p.add_argument("--features", default="sift,kaze,akaze,orb", help="feature types: {FEATURES}")
     p.add_argument(

@@ -35,7 +35,12 @@ from ipbench.assets.objects import CATEGORIES, instances
 from ipbench.envs.depth_noise import SENSOR_EFFECTS, without_effect
 from ipbench.eval.dataset import DatasetConfig, ViewSet, load_or_build
 from ipbench.perception._pointnet_config import PointNetConfig
-from ipbench.perception.classifiers import CLASSIFIERS, GPClassifier, make_classifier
+from ipbench.perception.classifiers import (
+    CLASSIFIERS,
+    GPClassifier,
+    check_classifier_name,
+    make_classifier,
+)
 from ipbench.perception.cloud import depth_to_points
 from ipbench.perception.features import Codebook
 from ipbench.perception.metrics import (
@@ -122,7 +127,9 @@ class PerceptionEvalConfig:
     dataset : how views are rendered (its hash keys the cache).
     codebook_size : words in the bag-of-words codebook (the thesis' best: 256).
     codebook_samples : descriptors sampled from the training views to fit the codebook.
-    classifiers : which classifiers to compare (of :data:`EVAL_CLASSIFIERS`).
+    classifiers : which classifiers to compare (of :data:`EVAL_CLASSIFIERS`, or the user's own
+        as ``module:attribute``: :func:`~ipbench.perception.classifiers.load_classifier`; such
+        a classifier reads the bag-of-words vectors, as the GP does).
     seed : seeds the codebook and the classifiers (the PointNet ensemble's too: it replaces
         ``pointnet.seed``).
     segmentation_seeds : episode seeds of both standard scenes whose segmentation is scored
@@ -144,9 +151,8 @@ class PerceptionEvalConfig:
     pointnet: PointNetConfig = field(default_factory=PointNetConfig)
 
     def __post_init__(self) -> None:
-        unknown = [c for c in self.classifiers if c not in EVAL_CLASSIFIERS]
-        if unknown:
-            raise ValueError(f"unknown classifiers {unknown}; valid: {', '.join(EVAL_CLASSIFIERS)}")
+        for name in self.classifiers:  # a module:attribute reference is imported and checked
+            check_classifier_name(name, EVAL_CLASSIFIERS)
 
     def pointnet_config(self) -> PointNetConfig:
         """:attr:`pointnet` seeded by :attr:`seed`."""

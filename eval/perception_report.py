@@ -6,6 +6,7 @@ Confusion matrices in the style of the thesis' figures 5.9/5.10, a reliability d
 
 from __future__ import annotations
 
+import re
 from pathlib import Path
 
 import matplotlib
@@ -287,7 +288,7 @@ def write_report(
         for name in metrics[subset]:
             probs, labels = figures[(subset, name, "unknown")]
             if len(labels):
-                png = f"confusion_{subset}_{name}.png"
+                png = f"confusion_{subset}_{re.sub(r'[^A-Za-z0-9_.-]', '-', name)}.png"  # file-safe
                 _confusion_png(
                     out / png,
                     metrics[subset][name]["confusion"],

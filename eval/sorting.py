@@ -64,6 +64,7 @@ from ipbench.policies import (
     policy_classifier,
     split_policy_name,
 )
+from ipbench.policies.custom import is_reference
 from ipbench.policies.oracle import true_category, true_object
 from ipbench.policies.threshold import RULE, ThresholdChoice, choose_threshold
 
@@ -95,7 +96,8 @@ class SortingEvalConfig:
 
     Attributes
     ----------
-    scenes, policies : names (see ``SCENES`` and :data:`~ipbench.policies.POLICIES`).
+    scenes, policies : names (see ``SCENES`` and :data:`~ipbench.policies.POLICIES`; a policy
+        may also be the user's own, ``module:attribute``, :mod:`ipbench.policies.custom`).
     seeds : episode seeds (the same for every policy and scene).
     validation_seeds : seeds of the validation scenes whose first views choose the thresholds
         (:func:`validation_view`); disjoint from ``seeds``.
@@ -219,8 +221,8 @@ class SortingEvalConfig:
         return replace(self, extrinsics="true", calibration=None, robot_seed=0)
 
     def cell_key(self) -> list:
-        """What the robot's cell adds to a fingerprint: nothing for ``"true"`` (the keys of runs
-        made before the option stay valid), else the mode, the robot seed and the calibration
+        """What the robot's cell adds to a fingerprint: nothing for ``"true"`` (so its keys equal
+        those of a config without the option), else the mode, the robot seed and the calibration
         file's content hash (not its path)."""
         if self.extrinsics == "true":
             return []
@@ -474,7 +476,10 @@ def prepare_models(
     inspecting = [c for p in config.policies if (c := policy_classifier(p)) is not None]
     needed = sorted({classifier for classifier, _ in inspecting})
     wanted = ("gp",) + tuple(c for c in needed if c != "gp")
-    in_hand = tuple(sorted({classifier for classifier, mode in inspecting if mode == "hand"}))
+    hand = {classifier for classifier, mode in inspecting if mode == "hand"}
+    if any(is_reference(p) for p in config.policies):  # a policy of the user's own sees with
+        hand.add("gp")  # GP-IPM's perceiver, whichever policies run beside it
+    in_hand = tuple(sorted(hand))
     # validation views still to take go into the same pool (not with Ray: they run there)
     pending = [
         c

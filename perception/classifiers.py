@@ -16,6 +16,10 @@
   because with ``kernel=None`` scikit-learn *fixes* the hyper-parameters of its default
   ``1.0 * RBF(1.0)`` and tunes nothing.
 
+A classifier of the user's own is named ``module:attribute`` (``mypkg.models:MyClassifier``):
+built as ``MyClassifier(n_classes, seed)``, with ``fit(X, y)`` and ``predict_proba(X)`` as
+below (:func:`load_classifier` checks it; ``docs/custom.md``).
+
 All classifiers return ``(m, n_classes)`` probabilities whose columns are the classes
 ``0 .. n_classes - 1``, also when a class is missing from the training labels. The GP can be
 saved with ``get_state`` / ``from_state``; the scikit-learn based ones are plain Python
@@ -35,6 +39,13 @@ from sklearn.model_selection import GridSearchCV
 from sklearn.svm import SVC
 
 from ipbench.perception.gpc import GPCConfig, MulticlassLaplaceGPC
+from ipbench.references import (
+    Method,
+    ReferenceLoadError,
+    check_methods,
+    is_reference,
+    load_reference,
+)
 
 __all__ = [
     "CLASSIFIERS",
@@ -44,6 +55,8 @@ __all__ = [
     "GPClassifier",
     "SVMClassifier",
     "SklearnGPClassifier",
+    "check_classifier_name",
+    "load_classifier",
     "make_classifier",
 ]
 
@@ -194,8 +207,75 @@ class GPClassifier:
         return clf
 
 
+_METHODS: tuple[Method, ...] = (
+    Method("fit", 2, "fit(X, y)"),
+    Method("predict_proba", 1, "predict_proba(X)"),
+)
+_NEEDS = (
+    "a classifier is built as MyClassifier(n_classes, seed) and needs fit(X, y) and "
+    "predict_proba(X) returning (m, n_classes) probabilities"
+)
+
+
+def load_classifier(ref: str):
+    """The class (or factory) a ``module:attribute`` reference names, checked up front: the
+    module imports, the attribute takes ``(n_classes, seed)`` and has ``fit(X, y)`` and
+    ``predict_proba(X)``. Raises :class:`ClassifierError` saying what is missing."""
+    try:
+        return load_reference(
+            ref, "classifier", ("n_classes", "seed"), _METHODS, _NEEDS, "mypkg.models:MyClassifier"
+        )
+    except ReferenceLoadError as err:
+        raise ClassifierError(str(err)) from err
+
+
+def check_classifier_name(name: str, valid: tuple[str, ...] = CLASSIFIERS) -> str:
+    """``name`` if it is one of ``valid`` or a usable ``module:attribute`` reference
+    (:func:`load_classifier`), else :class:`ClassifierError` listing the valid names."""
+    if is_reference(name):
+        load_classifier(name)
+    elif name not in valid:
+        raise ClassifierError(
+            f"unknown classifier {name!r}; valid: {', '.join(valid)}, or a classifier of your "
+            "own as module:attribute (e.g. mypkg.models:MyClassifier, see docs/custom.md)"
+        )
+    return name
+
+
+class _Checked:
+    """A classifier of the user's own, its probabilities checked for their shape."""
+
+    def __init__(self, name: str, classifier, n_classes: int) -> None:
+        self.name, self.classifier, self.n_classes = name, classifier, n_classes
+
+    def fit(self, X: np.ndarray, y: np.ndarray) -> _Checked:
+        self.classifier.fit(X, y)
+        return self
+
+    def predict_proba(self, X: np.ndarray) -> np.ndarray:
+        """``(m, n_classes)`` class probabilities of the wrapped classifier, checked."""
+        m = len(X)
+        p = np.asarray(self.classifier.predict_proba(X), dtype=float)
+        if p.shape != (m, self.n_classes):
+            raise ClassifierError(
+                f"{self.name}.predict_proba returned shape {p.shape} for {m} rows; it must "
+                f"return ({m}, {self.n_classes}): one column per class 0..{self.n_classes - 1}"
+            )
+        if m and (not np.isfinite(p).all() or (p < 0).any() or np.abs(p.sum(1) - 1).max() > 1e-3):
+            raise ClassifierError(
+                f"{self.name}.predict_proba returned rows that are not probabilities (finite, "
+                "non-negative, summing to one)"
+            )
+        return p
+
+    def predict(self, X: np.ndarray) -> np.ndarray:
+        """``(m,)`` most probable classes."""
+        return np.argmax(self.predict_proba(X), axis=1)
+
+
 def make_classifier(name: str, n_classes: int, seed: int = 0) -> Classifier:
-    """Build an unfitted classifier by name (one of :data:`CLASSIFIERS`).
+    """Build an unfitted classifier by name (one of :data:`CLASSIFIERS`, or a ``module:attribute``
+    reference: :func:`load_classifier`, built as ``attribute(n_classes, seed)``).
 
     Raises
     ------
@@ -212,4 +292,11 @@ def make_classifier(name: str, n_classes: int, seed: int = 0) -> Classifier:
         return SVMClassifier(n_classes, seed)
     if name == "sklearn_gp":
         return SklearnGPClassifier(n_classes, seed)
+    if is_reference(name):
+        built = load_classifier(name)(int(n_classes), seed)
+        try:
+            check_methods(built, name, "classifier", _METHODS, _NEEDS)
+        except ReferenceLoadError as err:
+            raise ClassifierError(str(err)) from err
+        return _Checked(name, built, int(n_classes))
     raise ClassifierError(f"unknown classifier {name!r}; valid names: {', '.join(CLASSIFIERS)}")

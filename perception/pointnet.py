@@ -29,8 +29,18 @@ from dataclasses import asdict
 from pathlib import Path
 
 import numpy as np
-import torch
 from scipy.optimize import minimize_scalar
+
+try:
+    import torch
+except ModuleNotFoundError as _missing:  # torch is the optional extra "deep"
+    if _missing.name != "torch":
+        raise
+    raise ModuleNotFoundError(
+        "the PointNet ensemble (classifier pointnet_ensemble, policy deep-ipm) needs torch, "
+        "which is ipbench's optional extra 'deep': pip install 'ipbench[deep]'",
+        name="torch",
+    ) from _missing
 
 from ipbench.perception._pointnet_config import PointNetConfig
 from ipbench.perception._pointnet_net import PointNet, centre, deterministic_cpu, train_member
@@ -64,6 +74,8 @@ class PointNetEnsemble:
     """
 
     name = "pointnet_ensemble"
+    input = "points"
+    """What it classifies: the segments' points (the FPFH models classify bags of words)."""
 
     def __init__(
         self,

@@ -6,25 +6,37 @@ ground-truth sorter of the demo.
 :func:`make_policy` builds one by name from the trained perception models. A confidence-driven
 policy (:data:`INTERACTIVE`) runs at its validated threshold under its plain name and at a
 threshold ``T`` of the user's as ``name@T`` (``gp-ipm@0.8``); ``random-inspect@P`` inspects a
-fraction ``P`` of the objects (:func:`split_policy_name`).
+fraction ``P`` of the objects (:func:`split_policy_name`). A policy of the user's own is named
+``module:attribute`` (``mypkg.policies:MyPolicy``, :mod:`ipbench.policies.custom`): a plain
+policy, with no validated threshold, that never reads the ground truth.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 from ipbench.envs.sorting import COMMANDS
 from ipbench.perception.features import DEFAULT_FEATURES, FeatureConfig
 from ipbench.perception.model import PerceptionModel
-from ipbench.perception.pointnet import PointNetEnsemble
 from ipbench.perception.segmentation import DEFAULT_SEGMENTATION, SegmentationConfig
 from ipbench.policies.base import Decision, NothingToSort, Policy, PolicyError
+from ipbench.policies.custom import (
+    check_policy_reference,
+    is_reference,
+    make_custom_policy,
+    split_reference,
+)
 from ipbench.policies.fusion import FUSIONS
 from ipbench.policies.inspection_references import OracleInspectSorter, RandomInspectSorter
 from ipbench.policies.interactive import InteractiveConfig, InteractiveSorter
 from ipbench.policies.oracle import OracleSorter
 from ipbench.policies.perceiver import Detection, Perceiver
 from ipbench.policies.random_sorting import RandomSorter
+from ipbench.references import ReferenceLoadError
+
+if TYPE_CHECKING:  # torch is an optional extra: only deep-ipm's runs import it
+    from ipbench.perception.pointnet import PointNetEnsemble
 
 __all__ = [
     "EVAL_CAMERAS",
@@ -92,12 +104,28 @@ the GP-IPM loop with the GP's labels."""
 
 
 def split_policy_name(name: str) -> tuple[str, float | None]:
-    """``"gp-ipm@0.8"`` -> ``("gp-ipm", 0.8)``; a plain name -> ``(name, None)``. Raises
-    :class:`PolicyError` for a name that is not one of :data:`POLICIES`, an ``@`` on a policy
-    that takes no value, a value outside [0, 1], or ``random-inspect`` without its fraction."""
+    """``"gp-ipm@0.8"`` -> ``("gp-ipm", 0.8)``; a plain name or a ``module:attribute``
+    reference -> ``(name, None)`` (a reference's form is checked, nothing imported). Raises
+    :class:`PolicyError` for a name that is not one of :data:`POLICIES` nor a reference, an
+    ``@`` on a policy that takes no value, a value outside [0, 1], or ``random-inspect``
+    without its fraction."""
+    if is_reference(name):  # the user's own policy, module:attribute (form only: no import)
+        if "@" in name:
+            raise PolicyError(
+                f"{name!r}: a policy of your own takes no @value (thresholds and fractions "
+                f"go with the built-in {', '.join((*INTERACTIVE, 'random-inspect'))})"
+            )
+        try:
+            split_reference(name, "policy", "mypkg.policies:MyPolicy")
+        except ReferenceLoadError as err:
+            raise PolicyError(str(err)) from err
+        return name, None
     base, at, value = name.partition("@")
     if base not in POLICIES:
-        raise PolicyError(f"unknown policy {name!r}; valid: {', '.join(POLICIES)}")
+        raise PolicyError(
+            f"unknown policy {name!r}; valid: {', '.join(POLICIES)}, or a policy of your own "
+            "as module:attribute (e.g. mypkg.policies:MyPolicy, see docs/custom.md)"
+        )
     takes = (*INTERACTIVE, "random-inspect")
     if not at:
         if base == "random-inspect":
@@ -123,8 +151,15 @@ def split_policy_name(name: str) -> tuple[str, float | None]:
 
 
 def check_policy_name(name: str) -> str:
-    """``name`` if it names a policy (:func:`split_policy_name`), else :class:`PolicyError`."""
+    """``name`` if it names a policy (:func:`split_policy_name`; a ``module:attribute``
+    reference is imported and its protocol checked, :mod:`ipbench.policies.custom`), else
+    :class:`PolicyError`."""
     split_policy_name(name)
+    if is_reference(name):
+        try:
+            check_policy_reference(name)
+        except ReferenceLoadError as err:
+            raise PolicyError(str(err)) from err
     return name
 
 
@@ -165,9 +200,10 @@ def make_policy(
     fusion: str = "majority",
     commands: tuple[str, ...] = COMMANDS,
 ) -> Policy:
-    """The policy ``name`` (one of :data:`POLICIES`) for an env whose ``action["command"]``
-    values mean ``commands`` (``env.unwrapped.commands``; the oracle picks first where it
-    can, see :mod:`ipbench.policies.oracle`)."""
+    """The policy ``name`` (one of :data:`POLICIES`, or a ``module:attribute`` reference built
+    as ``attribute(perceiver, name)`` with the GP's perceiver) for an env whose
+    ``action["command"]`` values mean ``commands`` (``env.unwrapped.commands``; the oracle
+    picks first where it can, see :mod:`ipbench.policies.oracle`)."""
 
     def perceiver(model: PerceptionModel | PointNetEnsemble | None, what: str) -> Perceiver:
         if model is None:
@@ -181,6 +217,11 @@ def make_policy(
         )
 
     base, value = split_policy_name(name)
+    if is_reference(base):
+        try:
+            return make_custom_policy(base, perceiver(models.gp, "gp"))
+        except ReferenceLoadError as err:
+            raise PolicyError(str(err)) from err
 
     def config(classifier: str, inspection: str, threshold: float | None) -> InteractiveConfig:
         if threshold is None:

@@ -11,13 +11,13 @@ simulator's state.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from ipbench.perception.cloud import PerceptionError, depth_to_points
 from ipbench.perception.features import DEFAULT_FEATURES, FeatureConfig, fpfh
 from ipbench.perception.model import PerceptionModel
-from ipbench.perception.pointnet import PointNetEnsemble
 from ipbench.perception.segmentation import (
     DEFAULT_SEGMENTATION,
     Segment,
@@ -29,6 +29,9 @@ from ipbench.perception.segmentation import (
 from ipbench.perception.split import DEFAULT_SPLIT, ObjectEnvelope, SplitConfig, split_merged
 from ipbench.policies.envelopes import object_envelopes
 from ipbench.policies.kinematics import HandKinematics
+
+if TYPE_CHECKING:  # torch is an optional extra: only deep-ipm's runs import it
+    from ipbench.perception.pointnet import PointNetEnsemble
 
 __all__ = ["AREA_HALF", "Detection", "Perceiver"]
 
@@ -129,7 +132,7 @@ class Perceiver:
         model: PerceptionModel | PointNetEnsemble | None = None,
     ):
         model = model or self.model
-        if isinstance(model, PointNetEnsemble):  # a network on the segments' points
+        if getattr(model, "input", "fpfh") == "points":  # a network on the segments' points
             probs = model.probabilities([s.points for s in segments])
         else:  # FPFH bag of words (the thesis' pipeline)
             views = [fpfh(s.points, self.features, viewpoint=eye) for s in segments]
