@@ -158,8 +158,9 @@ def _stamp(head: Run, found: Discovery, others: list[str], link: str) -> str:
         "Objects sorted into their own bin, mean over seeds with its 95 % bootstrap interval; "
         "GP-IPM − random: per-seed differences over the same seeds in percentage points, with "
         "the sign-flip p. "
-        f"`{env}`, policy version {info.get('policy_version', '–')}, perception key "
-        f"`{info.get('perception_key', '–')}`, inspection threshold "
+        f"`{env}`, policy version {info.get('policy_version', '–')}, "
+        + (f"dataset version {info['dataset_version']}, " if "dataset_version" in info else "")
+        + f"perception key `{info.get('perception_key', '–')}`, inspection threshold "
         f"{', '.join(thresholds) or 'none'}, seeds {seeds_text(config.get('seeds', []))[1]}, "
         f"`ipbench check`: {verdict}. Run `{head.name}`"
         + "".join(others)

@@ -38,6 +38,7 @@ from ipbench.envs.calibration_file import CalibrationFile, CalibrationFileError
 from ipbench.envs.extrinsics import ExtrinsicsError, check_extrinsics
 from ipbench.envs.layout import SCENES, STANDARD_SCENES
 from ipbench.envs.sorting import workcell_places
+from ipbench.eval.dataset import DATASET_VERSION
 from ipbench.eval.episodes import BACKENDS, open_run, record_episodes, run_episodes
 from ipbench.eval.label_curve import label_curve, label_curve_lines
 from ipbench.eval.perception import PerceptionEvalConfig, model_key, trained_models
@@ -729,6 +730,7 @@ def run_sorting_eval(
             },
             "model_keys": keys,
             "perception_key": model_key(config.perception, CATEGORIES),
+            "dataset_version": DATASET_VERSION,
             "config": asdict(config),
         },
         _record_key,

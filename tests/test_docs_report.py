@@ -60,6 +60,7 @@ def _sorting_run(folder: Path, curve: bool = True) -> None:
         },
         "model_keys": {"gp": "aaaa1111", "svm": None},
         "perception_key": "bbbb2222",
+        "dataset_version": 3,
         "config": {
             "scenes": ["uncluttered", "cluttered"],
             "policies": ["random", "gp-ipm"],
@@ -290,7 +291,8 @@ def test_readme_block_replaces_only_the_marked_region(results, tmp_path):
     assert "old text" not in block and "\n" not in block.replace("\r\n", "")
     assert "| cluttered | 71.0 % [67.9, 73.8] | 86.0 % [78.0, 90.0] | – | +16.0 " in block
     assert "p = 0.1250 | +4.3 [-2.1, +11.0], p = 0.2578 |" in block
-    for stamp in ("`ipbench/Sorting-v2`", "policy version 7", "`bbbb2222`", "gp 0.85 (validated"):
+    stamps = ("`ipbench/Sorting-v2`", "policy version 7", "dataset version 3", "`bbbb2222`")
+    for stamp in (*stamps, "gp 0.85 (validated"):
         assert stamp in block, stamp
     assert "seeds 0–4 (5)" in block and "`ipbench check`: statistical" in block
     assert "(docs/results/index.md)" in block

@@ -15,6 +15,7 @@ from small_models import small_models
 import ipbench.envs  # noqa: F401
 import ipbench.eval.sorting as sorting
 from ipbench.envs.layout import SCENES, STANDARD_SCENES
+from ipbench.eval.dataset import DATASET_VERSION
 from ipbench.eval.sorting import SortingEvalConfig, SortingEvalError, Task, run_sorting_eval
 from ipbench.policies import POLICIES, PolicyModels
 from ipbench.policies.threshold import choose_threshold
@@ -351,6 +352,7 @@ def test_threshold_option_sets_which_objects_are_inspected(tmp_path, prepared, t
     fixture = choose_threshold(np.array([0.4, 0.6, 0.9]), np.array([False, True, True]), 0.95)
     assert validated["threshold"] == fixture.threshold and not validated["used"]
     assert validated["rule"] == "logistic-precision" and "validation seeds" in validated["data"]
+    assert run["dataset_version"] == DATASET_VERSION  # what the results pages stamp
 
 
 def test_thresholds_expand_each_confidence_driven_policy() -> None:
