@@ -2,7 +2,9 @@
 
 One table, per scene: random sorting, GP-IPM and the oracle's accuracy (mean over seeds with
 its 95 % interval), GP-IPM − random paired over seeds, and GP-IPM's gain over random
-inspection (the accuracy–inspection curve's score) when a run has one; stamped with the
+inspection (the accuracy–inspection curve's score) when a run has one; when the run is one of
+several seed sets of its measurement (:mod:`ipbench.eval.seed_sets`), the verdict over all
+their seeds and each set's score; stamped with the
 environment id, the policy code version, the perception key, the threshold, the seeds and the
 ``ipbench check`` verdict. It replaces the text between :data:`START` and :data:`END` and
 nothing else.
@@ -28,6 +30,7 @@ from ipbench.eval.docs_markdown import (
 )
 from ipbench.eval.docs_runs import Discovery, DocsReportError, Run
 from ipbench.eval.docs_sorting import curve_figure_name, paired_against_random
+from ipbench.eval.seed_sets import replications, seed_set_groups
 
 __all__ = ["END", "START", "choose_headline", "headline_block", "replace_block", "verdict"]
 
@@ -145,6 +148,43 @@ def verdict(scores: Mapping[str, Mapping]) -> str:
     )
 
 
+def _seed_set_sentences(head: Run, runs: tuple[Run, ...]) -> list[str]:
+    """When ``head`` is one of several seed sets of its measurement: the verdict over all their
+    seeds, and each set's score with how far apart the sets land (a paragraph), else none."""
+    group = next((g for g in seed_set_groups(runs) if head in g), None)
+    rows = [r for r in replications(group) if r.quantity == f"{_GP} score"] if group else []
+    if not rows:
+        return []
+    pooled = {
+        r.scene: {
+            "mean": r.pooled.mean,
+            "ci_low": r.pooled.ci_low,
+            "ci_high": r.pooled.ci_high,
+            "p_vs_random_inspect": r.pooled_p,
+        }
+        for r in rows
+    }
+    n = len(rows[0].pooled.seeds)
+    sets = "; ".join(
+        f"{r.scene}: "
+        + ", ".join(
+            f"{points(e.mean)} {points_interval(e.ci_low, e.ci_high)} on seeds "
+            f"{seeds_text(e.seeds)[1].split(' (')[0]}"
+            for e in r.sets
+        )
+        + f", {points(r.gap.mean_diff)} points apart {points_interval(r.gap.ci_low, r.gap.ci_high)}"
+        for r in rows
+    )
+    runs_named = ", ".join(f"`{run.name}`" for run in group)
+    return [
+        f"Over all {n} seeds of the seed sets {runs_named}: "
+        + verdict(pooled)[0].lower()
+        + verdict(pooled)[1:]
+        + f" Each set's score — {sets}.",
+        "",
+    ]
+
+
 def _stamp(head: Run, found: Discovery, others: list[str], link: str) -> str:
     info = head.json("run.json") or {}
     config = info.get("config", {})
@@ -217,8 +257,9 @@ def headline_block(found: Discovery, link: str, name: str | None = None) -> str:
     if scores and sources.get("the curve score") is None and "curve.png" in head.files:
         figure = link.rsplit("/", 1)[0] + "/" + curve_figure_name(head) if "/" in link else ""
         lines += [f"![accuracy against inspections per object, run {head.name}]({figure})", ""]
+    sets = _seed_set_sentences(head, runs)  # the verdict over every seed set replaces the run's
     sentence = verdict(scores)
-    lines += [*table(head_cells, rows), "", *([sentence, ""] if sentence else [])]
+    lines += [*table(head_cells, rows), "", *(sets or ([sentence, ""] if sentence else []))]
     lines.append(_stamp(head, found, others, link))
     return "\n".join(lines) + "\n"
 

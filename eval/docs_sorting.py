@@ -5,7 +5,8 @@ Per sorting run (:mod:`ipbench.eval.docs_runs`): accuracy per scene and policy a
 differences against random sorting (the run report's test, :func:`ipbench.eval.stats.
 paired_test`, on the per-seed accuracies kept in ``accuracy_per_seed.json``), and, when the
 run has a ``curve.json``, the accuracy–inspection curve and each confidence family's score
-with its interval and p, beside the curve figure (copied next to the page).
+with its interval and p, beside the curve figure (copied next to the page); then runs that
+are seed sets of one measurement side by side (:mod:`ipbench.eval.docs_seed_sets`).
 """
 
 from __future__ import annotations
@@ -24,6 +25,7 @@ from ipbench.eval.docs_markdown import (
     table,
 )
 from ipbench.eval.docs_runs import Run
+from ipbench.eval.docs_seed_sets import seed_set_lines
 from ipbench.eval.stats import PairedTest, paired_test
 
 __all__ = ["curve_figure_name", "paired_against_random", "sorting_command", "sorting_page"]
@@ -230,4 +232,5 @@ def sorting_page(runs: tuple[Run, ...]) -> str:
         lines += ["No sorting run among the results (`ipbench eval sorting`).", ""]
     for run in runs:
         lines += _run_lines(run)
+    lines += seed_set_lines(runs)
     return "\n".join(lines).rstrip("\n") + "\n"

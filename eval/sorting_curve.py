@@ -47,6 +47,7 @@ __all__ = [
     "curve",
     "curve_lines",
     "decomposition",
+    "per_seed_scores",
     "write_curve",
 ]
 
@@ -69,7 +70,9 @@ class _Run:
     def x(self, seeds: Sequence[int]) -> float:
         """Inspections per object pooled over ``seeds``."""
         eps = [self.episodes[s] for s in seeds]
-        return sum(int(e["inspections"]) for e in eps) / max(1, sum(int(e["objects"]) for e in eps))
+        return sum(float(e["inspections"]) for e in eps) / max(
+            1, sum(int(e["objects"]) for e in eps)
+        )
 
     def y(self, seeds: Sequence[int]) -> np.ndarray:
         """Per-seed accuracy (fraction)."""
@@ -128,10 +131,11 @@ def _line(runs: Sequence[_Run], seeds: Sequence[int]) -> tuple[np.ndarray, np.nd
     return ux, uy
 
 
-def _score(fam: Sequence[_Run], rand: Sequence[_Run], oracle: _Run | None) -> dict:
-    """The family's mean gain over the random-inspection line (see the module docstring)."""
-    out = dict.fromkeys(("mean", "ci_low", "ci_high", "p_vs_random_inspect", "normalized"))
-    out.update(n=0, x_range=None, note=None)
+def _per_seed(fam: Sequence[_Run], rand: Sequence[_Run]) -> dict:
+    """``{"per_seed": {seed: score}, "x_range": (lo, hi), "line": (x, (k, n) y), "n": seeds,
+    "note": None}``; without a score, ``per_seed`` None and ``note`` says why (see the module
+    docstring)."""
+    out = {"per_seed": None, "x_range": None, "line": None, "n": 0, "note": None}
     sweep = [r for r in fam if r.value is not None]  # the validated run is not on the sweep
     # the family at 0 and 1 inspects nothing / everything: random inspection at P = 0 and 1
     ends = {r.value: r for r in sweep if r.value in (0.0, 1.0)}
@@ -154,9 +158,23 @@ def _score(fam: Sequence[_Run], rand: Sequence[_Run], oracle: _Run | None) -> di
     for j, s in enumerate(seeds):
         d = np.interp(grid, xf, yf[:, j]) - np.interp(grid, xr, yr[:, j])
         per_seed[s] = float(np.sum((d[1:] + d[:-1]) / 2 * np.diff(grid)) / (hi - lo))
+    out.update(per_seed=per_seed, x_range=(float(lo), float(hi)), line=(xr, yr))
+    return out
+
+
+def _score(fam: Sequence[_Run], rand: Sequence[_Run], oracle: _Run | None) -> dict:
+    """The family's mean gain over the random-inspection line (see the module docstring)."""
+    out = dict.fromkeys(("mean", "ci_low", "ci_high", "p_vs_random_inspect", "normalized"))
+    out.update(n=0, x_range=None, note=None)
+    found = _per_seed(fam, rand)
+    out["n"], out["note"] = found["n"], found["note"]
+    if found["per_seed"] is None:
+        return out
+    per_seed, (lo, hi), (xr, yr) = found["per_seed"], found["x_range"], found["line"]
+    seeds = list(per_seed)
     out["mean"], out["ci_low"], out["ci_high"] = bootstrap_ci(list(per_seed.values()))
     out["p_vs_random_inspect"] = paired_test(per_seed, dict.fromkeys(seeds, 0.0)).p_value
-    out["x_range"] = [float(lo), float(hi)]
+    out["x_range"] = [lo, hi]
     if oracle is not None:
         both = [j for j, s in enumerate(seeds) if s in oracle.episodes]
         xo = oracle.x([seeds[j] for j in both]) if both else math.nan
@@ -165,6 +183,47 @@ def _score(fam: Sequence[_Run], rand: Sequence[_Run], oracle: _Run | None) -> di
             gain = np.mean([yo[i] - np.interp(xo, xr, yr[:, j]) for i, j in enumerate(both)])
             mean = np.mean([per_seed[seeds[j]] for j in both])
             out["normalized"] = float(mean / gain) if gain > 0 else None
+    return out
+
+
+def per_seed_scores(
+    curve_data: Mapping, accuracy_per_seed: Mapping
+) -> dict[str, dict[str, dict[int, float]]]:
+    """Each paired seed's score, recomputed from a run's data files.
+
+    Parameters
+    ----------
+    curve_data : a run's ``curve.json`` (:func:`curve`): the points' policies and their
+        inspections per object.
+    accuracy_per_seed : ``{scene: {policy: {seed: accuracy}}}`` (fractions; seeds as str or
+        int), the per-seed accuracies kept of the run's episodes.
+
+    Returns
+    -------
+    ``{scene: {family: {seed: score}}}`` for every confidence family with a score, in accuracy
+    points (fractions). Each point's x is pooled over all of its seeds, so the scores equal
+    :func:`curve`'s when every run of the curve has the same seeds (as in one
+    ``ipbench eval sorting`` run).
+    """
+    out: dict[str, dict[str, dict[int, float]]] = {}
+    for scene, families in curve_data.items():
+        accuracy = accuracy_per_seed.get(scene, {})
+        runs: dict[str, list[_Run]] = {}
+        for family, entry in families.items():
+            for point in entry.get("points", []):
+                if point["policy"] not in accuracy:
+                    continue
+                x = float(point["inspections_per_object"])
+                episodes = {
+                    int(s): {"inspections": x, "objects": 1, "accuracy": float(a)}
+                    for s, a in accuracy[point["policy"]].items()
+                }
+                _, value = split_policy_name(point["policy"])
+                runs.setdefault(family, []).append(_Run(point["policy"], family, value, episodes))
+        for family in (f for f in CONFIDENCE_FAMILIES if f in runs):
+            found = _per_seed(runs[family], runs.get("random-inspect", []))["per_seed"]
+            if found is not None:
+                out.setdefault(scene, {})[family] = found
     return out
 
 

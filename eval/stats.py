@@ -1,9 +1,8 @@
-"""Statistics over seeds shared by the reports: a percentile bootstrap interval of a mean and
-a paired sign-flip permutation test.
+"""Statistics over seeds shared by the reports: a percentile bootstrap interval of a mean, a
+paired sign-flip permutation test (two policies on the same seeds), a two-sample test (one
+quantity on two disjoint seed sets) and the seeds a target interval width needs.
 
-Moved here from :mod:`ipbench.eval.sorting_report` (which imports them back, so its public names
-are unchanged) when the exploration report (:mod:`ipbench.eval.exploration_report`) came to
-need them too. Pure numpy and deterministic for a given ``seed``.
+Deterministic for a given ``seed``; :mod:`ipbench.eval.sorting_report` re-exports the first two.
 """
 
 from __future__ import annotations
@@ -13,7 +12,14 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["PairedTest", "bootstrap_ci", "paired_test"]
+__all__ = [
+    "PairedTest",
+    "TwoSampleTest",
+    "bootstrap_ci",
+    "paired_test",
+    "seeds_for_half_width",
+    "two_sample_test",
+]
 
 _EXACT_MAX_N = 16
 """Up to this many pairs the permutation test enumerates all ``2**n`` sign patterns."""
@@ -137,3 +143,86 @@ def paired_test(
     mean, low, high = bootstrap_ci(diffs, n_boot=n_boot, seed=seed)
     p, method = _sign_flip_p(diffs, n_flips, seed)
     return PairedTest(len(seeds), mean, low, high, p, method)
+
+
+@dataclass(frozen=True)
+class TwoSampleTest:
+    """One quantity measured on two disjoint seed sets (``b - a``).
+
+    Attributes
+    ----------
+    n_a, n_b : values (seeds) in each set.
+    mean_diff : ``mean(b) - mean(a)`` (units of the inputs).
+    ci_low, ci_high : 95 % percentile bootstrap interval of ``mean_diff`` (each set resampled
+        on its own).
+    p_value : two-sided permutation p of ``mean_diff`` (the values reassigned to the sets).
+    """
+
+    n_a: int
+    n_b: int
+    mean_diff: float
+    ci_low: float
+    ci_high: float
+    p_value: float
+
+
+def two_sample_test(
+    a: Iterable[float],
+    b: Iterable[float],
+    n_resamples: int = 10_000,
+    seed: int = 0,
+) -> TwoSampleTest:
+    """Difference of the means of two independent samples: bootstrap interval and permutation p.
+
+    Parameters
+    ----------
+    a, b : (n_a,), (n_b,) finite values, e.g. one score per seed of two disjoint seed sets;
+        each needs two or more.
+    n_resamples : bootstrap resamples and random permutations
+        (:func:`scipy.stats.bootstrap`, :func:`scipy.stats.permutation_test`).
+    seed : seeds both.
+
+    Raises
+    ------
+    ValueError
+        When a sample has fewer than two values or a non-finite one.
+    """
+    from scipy import stats
+
+    x, y = (np.asarray(list(v), dtype=float) for v in (a, b))
+    for name, v in (("a", x), ("b", y)):
+        if v.ndim != 1 or v.size < 2 or not np.isfinite(v).all():
+            raise ValueError(
+                f"two_sample_test needs two or more finite values in {name}, got {v.tolist()}"
+            )
+
+    def diff(u, v, axis=-1):
+        return np.mean(v, axis=axis) - np.mean(u, axis=axis)
+
+    mean = float(diff(x, y))
+    if np.ptp(np.concatenate([x, y])) == 0.0:
+        return TwoSampleTest(x.size, y.size, mean, mean, mean, 1.0)
+    boot = stats.bootstrap(
+        (x, y), diff, n_resamples=n_resamples, method="percentile", rng=seed, vectorized=True
+    )
+    perm = stats.permutation_test((x, y), diff, n_resamples=n_resamples, rng=seed, vectorized=True)
+    low, high = boot.confidence_interval
+    return TwoSampleTest(x.size, y.size, mean, float(low), float(high), float(perm.pvalue))
+
+
+def seeds_for_half_width(sd: float, half_width: float, level: float = 0.95) -> int:
+    """Seeds a mean needs for its ``level`` interval to be ``±half_width`` wide.
+
+    The normal approximation ``n = (z * sd / half_width) ** 2`` rounded up, with ``z`` the
+    two-sided ``level`` quantile (1.96 at 95 %) and ``sd`` the per-seed standard deviation
+    (units of ``half_width``). Raises ValueError on ``half_width <= 0``, a negative or
+    non-finite ``sd`` or ``level`` outside ``(0, 1)``.
+    """
+    from scipy import stats
+
+    if not (half_width > 0 and np.isfinite(sd) and sd >= 0 and 0.0 < level < 1.0):
+        raise ValueError(
+            f"need sd >= 0, half_width > 0 and 0 < level < 1, got {sd}, {half_width}, {level}"
+        )
+    z = float(stats.norm.ppf(0.5 + level / 2.0))
+    return max(1, int(np.ceil((z * sd / half_width) ** 2 - 1e-9)))

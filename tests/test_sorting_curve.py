@@ -10,6 +10,7 @@ import pytest
 from ipbench.eval.sorting_curve import (
     curve,
     decomposition,
+    per_seed_scores,
     write_curve,
 )
 
@@ -194,3 +195,29 @@ def test_write_curve(tmp_path):
     assert "+5.0 points" in text and "What inspection did" in text and "(curve.png)" in text
     with pytest.raises(ValueError, match="at least one"):
         write_curve([], tmp_path)
+
+
+def _accuracy_per_seed(episodes: list[dict]) -> dict:
+    out: dict = {}
+    for e in episodes:
+        out.setdefault(e["scene"], {}).setdefault(e["policy"], {})[str(e["seed"])] = e["accuracy"]
+    return out
+
+
+def test_per_seed_scores_from_data_files_equal_the_curves_score():
+    eps = _toy({("oracle-inspect", 2): (1.0, 0.9), ("gp-ipm@0.8", 8): (0.85, 0.8)})
+    data = json.loads(json.dumps(curve(eps)))  # as read back from curve.json
+    scores = per_seed_scores(data, _accuracy_per_seed(eps))
+    assert list(scores) == ["cluttered"] and list(scores["cluttered"]) == ["gp-ipm"]
+    per_seed = scores["cluttered"]["gp-ipm"]
+    assert sorted(per_seed) == [0, 1]
+    assert sum(per_seed.values()) / 2 == pytest.approx(data["cluttered"]["gp-ipm"]["score"]["mean"])
+
+
+def test_per_seed_scores_by_hand_and_none_without_a_line():
+    eps = _toy()
+    per_seed = per_seed_scores(curve(eps), _accuracy_per_seed(eps))["cluttered"]["gp-ipm"]
+    assert [per_seed[0], per_seed[1]] == pytest.approx(_by_hand())
+    no_line = [e for e in eps if e["policy"] != "random-inspect@0.5"]
+    no_line = [e for e in no_line if e["policy"] != "gp-ipm@1.0"]
+    assert per_seed_scores(curve(no_line), _accuracy_per_seed(no_line)) == {}
