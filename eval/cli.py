@@ -20,20 +20,20 @@ import os
 import sys
 from pathlib import Path
 
-from ipbench.eval.check import add_check_parser, main_check
-from ipbench.eval.cli_calibration import (
+from ipbench.eval.calibration.cli import (
     add_calibrate,
     add_eval_calibration,
     main_calibrate,
     main_eval_calibration,
 )
-from ipbench.eval.cli_exploration import (
+from ipbench.eval.cli_options import add_json_option
+from ipbench.eval.exploration.cli import (
     add_bench_exploration,
     add_eval_exploration,
     main_exploration,
 )
-from ipbench.eval.cli_options import add_json_option
-from ipbench.eval.docs_report import add_report_parser, main_report
+from ipbench.eval.report.docs import add_report_parser, main_report
+from ipbench.eval.repro.check import add_check_parser, main_check
 
 __all__ = ["main", "build_parser"]
 
@@ -43,7 +43,7 @@ def _valid_names() -> dict[str, tuple[str, ...]]:
     from ipbench.envs import ENV_IDS
     from ipbench.envs.exploration_scene import LEVELS
     from ipbench.envs.layout import SCENES
-    from ipbench.eval.sorting import BACKENDS
+    from ipbench.eval.sorting.evaluate import BACKENDS
     from ipbench.perception.features2d import FEATURE_TYPES
     from ipbench.policies import FUSIONS, POLICIES
     from ipbench.policies.exploration import EXPLORATION_POLICIES
@@ -417,7 +417,7 @@ def _print_figures(figures: dict, json_arg: str | None, report) -> None:
 
 def _classifiers(args) -> dict:
     """``{"classifiers": (...)}`` from ``--classifiers``, checked; ``{}`` without it."""
-    from ipbench.eval.perception import EVAL_CLASSIFIERS as CLASSIFIERS
+    from ipbench.eval.perception.evaluate import EVAL_CLASSIFIERS as CLASSIFIERS
     from ipbench.perception.classifiers import ClassifierError, check_classifier_name
 
     if args.classifiers is None:
@@ -462,7 +462,7 @@ def main(argv: list[str] | None = None) -> int:
     if args.command == "calibrate":
         return main_calibrate(args)
     if args.command == "demo":
-        from ipbench.eval.demo import run_demo
+        from ipbench.eval.sorting.demo import run_demo
 
         scenes = _scenes(args.scenes)
         _writable(args.out, "--out")
@@ -475,7 +475,7 @@ def main(argv: list[str] | None = None) -> int:
         print(f"results written to {args.out.resolve()}")
         return 0
     if args.command == "eval" and args.target == "perception":
-        from ipbench.eval.perception import PerceptionEvalConfig, run_perception_eval
+        from ipbench.eval.perception.evaluate import PerceptionEvalConfig, run_perception_eval
 
         config = PerceptionEvalConfig.for_env(_env_id(args.env), **_classifiers(args))
         _writable(args.out, "--out")
@@ -487,8 +487,8 @@ def main(argv: list[str] | None = None) -> int:
         print(f"report written to {(args.out / 'perception.md').resolve()}")
         return 0
     if args.command == "eval" and args.target == "sorting":
-        from ipbench.eval.perception import PerceptionEvalConfig
-        from ipbench.eval.sorting import (
+        from ipbench.eval.perception.evaluate import PerceptionEvalConfig
+        from ipbench.eval.sorting.evaluate import (
             SortingEvalConfig,
             SortingEvalError,
             expand_thresholds,
@@ -528,7 +528,7 @@ def main(argv: list[str] | None = None) -> int:
     if args.command == "eval" and args.target == "calibration":
         return main_eval_calibration(args, _writable)
     if args.command == "eval" and args.target == "compare":
-        from ipbench.eval.compare_runs import (
+        from ipbench.eval.sorting.compare import (
             CompareError,
             as_json,
             compare_runs,
@@ -546,7 +546,7 @@ def main(argv: list[str] | None = None) -> int:
     if args.command in ("eval", "bench") and args.target == "exploration":
         return main_exploration(args, _seeds, _writable, _print_figures)
     if args.command == "figures":
-        from ipbench.eval.figures import depth_figure, family_gallery
+        from ipbench.eval.capture.figures import depth_figure, family_gallery
 
         env_id = _env_id(args.env)
         _writable(args.out, "--out")
@@ -558,9 +558,9 @@ def main(argv: list[str] | None = None) -> int:
             print(f"wrote {path}")
         return 0
     if args.command == "bench" and args.target == "eval":
-        from ipbench.eval.bench import report
-        from ipbench.eval.bench_eval import bench_eval, check_bench_eval
-        from ipbench.eval.sorting import SortingEvalError
+        from ipbench.eval.bench.episodes import bench_eval, check_bench_eval
+        from ipbench.eval.bench.sim import report
+        from ipbench.eval.sorting.evaluate import SortingEvalError
 
         policies = tuple(p.strip() for p in args.policies.split(",") if p.strip())
         try:
@@ -572,14 +572,14 @@ def main(argv: list[str] | None = None) -> int:
         _print_figures(figures, args.json, report)
         return 0
     if args.command == "bench" and args.target == "sim":
-        from ipbench.eval.bench import bench_sim, report
+        from ipbench.eval.bench.sim import bench_sim, report
 
         _scenes(args.scene)
         _print_figures(bench_sim(args.scene, env_id=_env_id(args.env)), args.json, report)
         return 0
     if args.command == "bench" and args.target == "perception":
-        from ipbench.eval.bench import report
-        from ipbench.eval.bench_perception import bench_perception
+        from ipbench.eval.bench.perception import bench_perception
+        from ipbench.eval.bench.sim import report
 
         _print_figures(bench_perception(), args.json, report)
         return 0

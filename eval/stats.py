@@ -2,7 +2,7 @@
 paired sign-flip permutation test (two policies on the same seeds), a two-sample test (one
 quantity on two disjoint seed sets) and the seeds a target interval width needs.
 
-Deterministic for a given ``seed``; :mod:`ipbench.eval.sorting_report` re-exports the first two.
+Deterministic for a given ``seed``; :mod:`ipbench.eval.sorting.report` re-exports the first two.
 """
 
 from __future__ import annotations

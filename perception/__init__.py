@@ -2,7 +2,7 @@
 
 Perception reads observations only (depth, intrinsics, camera pose, and for in-hand crops the
 robot's own gripper pose), never simulator state. The rendered training data lives in
-:mod:`ipbench.eval.dataset`, which uses the simulator as a capture rig and is not
+:mod:`ipbench.eval.capture.dataset`, which uses the simulator as a capture rig and is not
 imported here.
 
 - :mod:`~ipbench.perception.cloud`: depth → world-frame point cloud.

@@ -117,7 +117,7 @@ class PointNetEnsemble:
         if not len(clouds) or not np.isfinite(clouds).all():
             raise ValueError(
                 "no training views, or views without points (NaN): render the dataset with "
-                "points (ipbench.eval.dataset, DATASET_VERSION >= 3)"
+                "points (ipbench.eval.capture.dataset, DATASET_VERSION >= 3)"
             )
         if labels.min() < 0 or labels.max() >= self.n_classes:
             raise ValueError(f"labels must lie in 0..{self.n_classes - 1}")

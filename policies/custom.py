@@ -1,7 +1,7 @@
 """A sorting policy of the user's own, named ``module:attribute`` (``mypkg.policies:MyPolicy``).
 
-The protocol is what the evaluation's episode loop (:func:`ipbench.eval.sorting.run_episode`)
-calls::
+The protocol is what the evaluation's episode loop
+(:func:`ipbench.eval.sorting.evaluate.run_episode`) calls::
 
     policy = MyPolicy(perceiver, name)   # once per episode, in the worker that runs it
     policy.reset(seed)                   # the episode's seed

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import mujoco
 
-from ipbench.eval import bench
+from ipbench.eval.bench import sim as bench
 
 
 def test_manipulation_rate_times_raw_steps_from_a_held_pick(monkeypatch):
@@ -27,7 +27,7 @@ def test_manipulation_rate_times_raw_steps_from_a_held_pick(monkeypatch):
 def test_bench_eval_reports_rates_and_where_the_two_worker_speedup_goes(monkeypatch, tmp_path):
     import itertools
 
-    from ipbench.eval import bench_eval
+    from ipbench.eval.bench import episodes as bench_eval
 
     clock = itertools.count()
     monkeypatch.setattr(bench_eval.time, "perf_counter", lambda: 60.0 * next(clock) / 2)
@@ -51,6 +51,6 @@ def test_bench_eval_reports_rates_and_where_the_two_worker_speedup_goes(monkeypa
 def test_bench_eval_times_the_benchmarks_id():
     """The rates are of the id `make eval` runs, with the models of its own views."""
     from ipbench.envs import LATEST
-    from ipbench.eval.bench_eval import check_bench_eval
+    from ipbench.eval.bench.episodes import check_bench_eval
 
     assert check_bench_eval(("random",), 2).perception.dataset.env_id == LATEST

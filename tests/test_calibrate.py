@@ -1,4 +1,4 @@
-"""The robot calibrates its cameras in the simulated cell (eval/calibrate.py)."""
+"""The robot calibrates its cameras in the simulated cell (eval/calibration/calibrate.py)."""
 
 from __future__ import annotations
 
@@ -18,7 +18,7 @@ from ipbench.assets.calibration_target import (  # noqa: E402
 )
 from ipbench.assets.compose import build_workcell_spec  # noqa: E402
 from ipbench.envs.calibration_file import CalibrationFile  # noqa: E402
-from ipbench.eval.calibrate import (  # noqa: E402
+from ipbench.eval.calibration.calibrate import (  # noqa: E402
     CalibrationCaptureConfig,
     CalibrationRoutineError,
     build_calibration_model,

@@ -4,8 +4,8 @@ import json
 
 import pytest
 
-from ipbench.eval.calibration_eval import run_calibration_eval
-from ipbench.eval.calibration_study import HandEyeStudyConfig
+from ipbench.eval.calibration.evaluate import run_calibration_eval
+from ipbench.eval.calibration.study import HandEyeStudyConfig
 from ipbench.eval.cli import main
 from ipbench.perception.calibration.hand_eye import HAND_EYE_METHODS
 

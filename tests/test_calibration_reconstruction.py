@@ -7,16 +7,20 @@ import math
 import numpy as np
 import pytest
 
-from ipbench.eval.calibrate import CalibrationCaptureConfig, calibrate_capture, capture_views
-from ipbench.eval.calibration_eval import reconstruction_metrics
-from ipbench.eval.calibration_reconstruction import (
+from ipbench.eval.calibration.calibrate import (
+    CalibrationCaptureConfig,
+    calibrate_capture,
+    capture_views,
+)
+from ipbench.eval.calibration.evaluate import reconstruction_metrics
+from ipbench.eval.calibration.reconstruction import (
     HEAD_METHODS,
     THESIS,
     ReconstructionError,
     board_errors,
     reconstruct_head,
 )
-from ipbench.eval.wrist_reconstruction import reconstruct_wrist
+from ipbench.eval.calibration.wrist_reconstruction import reconstruct_wrist
 from ipbench.perception.calibration.target import Checkerboard
 
 ROBOT_SEED = 3

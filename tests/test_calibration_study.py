@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 
 from ipbench.assets.compose import build_robot_spec
-from ipbench.eval.calibration_study import (
+from ipbench.eval.calibration.study import (
     HEAD_LEFT_RIG,
     TARGETS,
     WRIST_RIG,

@@ -11,7 +11,7 @@ import sys
 import numpy as np
 import pytest
 
-from ipbench.eval.check import (
+from ipbench.eval.repro.check import (
     CHECK_FORMAT,
     MEANINGS,
     REFERENCE_FILE,
@@ -24,11 +24,11 @@ from ipbench.eval.check import (
     main_check,
     verdict_of,
 )
-from ipbench.eval.digests import CHEAP_STAGES, STAGES, digest_arrays
+from ipbench.eval.repro.digests import CHEAP_STAGES, STAGES, digest_arrays
 
 _DIGESTS = (
     "import json\n"
-    "from ipbench.eval.digests import CHEAP_STAGES, run_stages\n"
+    "from ipbench.eval.repro.digests import CHEAP_STAGES, run_stages\n"
     "print(json.dumps({n: r.parts for n, r in run_stages(CHEAP_STAGES).items()}))\n"
 )
 

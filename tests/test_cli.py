@@ -53,7 +53,7 @@ def test_mp4_decodes_to_the_written_frames(tmp_path):
 
 
 def test_demo_writes_summary_and_video(tmp_path):
-    from ipbench.eval.demo import run_demo
+    from ipbench.eval.sorting.demo import run_demo
 
     summary = run_demo(tmp_path, scenes=("uncluttered",), seed=1, video=True, max_steps=2)
     saved = json.loads((tmp_path / "demo_summary.json").read_text())
@@ -77,7 +77,7 @@ def test_unknown_env_id_is_rejected_with_the_valid_ids(tmp_path):
 def test_gallery_shows_every_family_once_on_the_table():
     from ipbench.assets.objects import FAMILIES
     from ipbench.envs.sorting import workcell_places
-    from ipbench.eval.figures import gallery_layout
+    from ipbench.eval.capture.figures import gallery_layout
 
     layout = gallery_layout("v2")
     shown = [(o.instance.category, o.instance.family) for o in layout.objects]

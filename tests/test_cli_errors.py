@@ -83,7 +83,7 @@ def test_a_file_in_place_of_the_cache_folder_is_explained(argv, tmp_path):
 
 def test_help_shows_defaults_and_valid_names(capsys, wide):
     sorting = _help(["eval", "sorting"], capsys)
-    from ipbench.eval.sorting import SortingEvalConfig
+    from ipbench.eval.sorting.evaluate import SortingEvalConfig
 
     seeds = SortingEvalConfig().seeds  # the CLI's default is the configuration's (30 seeds)
     assert seeds == tuple(range(seeds[0], seeds[-1] + 1)) and len(seeds) == 30

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from ipbench.eval.cli import main
-from ipbench.eval.compare_runs import CompareError, compare_runs, comparison_markdown
+from ipbench.eval.sorting.compare import CompareError, compare_runs, comparison_markdown
 
 
 def _run(folder, accuracies: dict[tuple[str, str, int], float]):

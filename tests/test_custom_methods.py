@@ -15,8 +15,8 @@ import pytest
 from exports import assert_exports
 from small_models import small_models
 
-import ipbench.eval.perception as perception
-import ipbench.eval.sorting as sorting
+import ipbench.eval.perception.evaluate as perception
+import ipbench.eval.sorting.evaluate as sorting
 from ipbench.assets.objects import CATEGORIES
 from ipbench.eval.cli import main
 from ipbench.eval.workers import run_tasks

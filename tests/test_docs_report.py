@@ -8,10 +8,10 @@ from pathlib import Path
 
 import pytest
 
-from ipbench.eval.docs_markdown import GENERATED_MARK
-from ipbench.eval.docs_readme import END, START
-from ipbench.eval.docs_report import PAGES, render_docs, report_docs
-from ipbench.eval.docs_runs import DocsReportError, discover
+from ipbench.eval.report.docs import PAGES, render_docs, report_docs
+from ipbench.eval.report.markdown import GENERATED_MARK
+from ipbench.eval.report.readme import END, START
+from ipbench.eval.report.runs import DocsReportError, discover
 
 REPO = Path(__file__).resolve().parent.parent
 SEEDS = [0, 1, 2, 3, 4]
@@ -341,7 +341,7 @@ def test_cli_help_ends_with_an_example(capsys):
 
 
 def test_the_verdict_sentence_reads_the_score_interval():
-    from ipbench.eval.docs_readme import verdict
+    from ipbench.eval.report.readme import verdict
 
     scores = {
         "uncluttered": {

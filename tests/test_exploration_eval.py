@@ -6,13 +6,13 @@ import json
 
 import pytest
 
-from ipbench.eval.exploration import (
+from ipbench.eval.capture.exploration_database import DatabaseCaptureConfig
+from ipbench.eval.exploration.evaluate import (
     ExplorationEvalConfig,
     ExplorationEvalError,
     refixation_rate,
     run_exploration_eval,
 )
-from ipbench.eval.exploration_database import DatabaseCaptureConfig
 from ipbench.policies.exploration import EXPLORATION_POLICIES, Fixation
 
 SIZE = (340, 512)

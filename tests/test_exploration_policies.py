@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 import ipbench.envs  # noqa: F401
-from ipbench.eval.exploration_database import (
+from ipbench.eval.capture.exploration_database import (
     DatabaseCaptureConfig,
     capture_views,
     load_or_build_database,

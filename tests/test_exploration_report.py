@@ -10,7 +10,7 @@ import math
 import pytest
 
 from ipbench.eval.episodes import load_episodes
-from ipbench.eval.exploration_report import (
+from ipbench.eval.exploration.report import (
     FEATURES,
     SCENES,
     THESIS_FIGURES,
@@ -221,7 +221,8 @@ def test_bad_budget(tmp_path):
 
 
 def test_statistics_live_in_stats_and_are_re_exported():
-    from ipbench.eval import sorting_report, stats
+    from ipbench.eval import stats
+    from ipbench.eval.sorting import report as sorting_report
 
     for name in ("bootstrap_ci", "paired_test", "PairedTest"):
         assert getattr(sorting_report, name) is getattr(stats, name)

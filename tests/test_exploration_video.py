@@ -6,7 +6,7 @@ import imageio.v2 as imageio
 import numpy as np
 import pytest
 
-from ipbench.eval.exploration_video import (
+from ipbench.eval.exploration.video import (
     ExplorationVideoError,
     ExplorationVideoRecorder,
     draw_frame,

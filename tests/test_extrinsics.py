@@ -24,7 +24,7 @@ from ipbench.envs.extrinsics import (
 from ipbench.envs.lens_distortion import D5100_35MM
 from ipbench.envs.model_errors import ModelErrors, sample_model_errors
 from ipbench.envs.sensors import camera_pose, intrinsics
-from ipbench.eval.calibrate import CalibrationCaptureConfig, calibrate_cell
+from ipbench.eval.calibration.calibrate import CalibrationCaptureConfig, calibrate_cell
 
 ROBOT_SEED = 3
 HEAD = (34, 51)  # (height, width): tiny head images keep the tests fast

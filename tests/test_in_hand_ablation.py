@@ -10,21 +10,21 @@ from exports import assert_exports
 
 import ipbench.envs  # noqa: F401  (registers the ids)
 from ipbench.assets.objects import CATEGORIES, instances
-from ipbench.eval import hand_views
-from ipbench.eval.dataset import DatasetConfig, InHandAblationConfig
-from ipbench.eval.hand_factors import (
+from ipbench.eval.capture import hand_views
+from ipbench.eval.capture.dataset import DatasetConfig, InHandAblationConfig
+from ipbench.eval.capture.hand_factors import (
     IN_HAND_FACTORS,
     gripper_pixels,
     ideal_view,
     object_pixels,
     view_from_distance,
 )
-from ipbench.eval.in_hand_ablation import (
+from ipbench.eval.perception.evaluate import PerceptionEvalConfig
+from ipbench.eval.perception.in_hand_ablation import (
     IN_HAND_ABLATION_PROTOCOL,
     IN_HAND_ROWS,
     ablation_dataset,
 )
-from ipbench.eval.perception import PerceptionEvalConfig
 from ipbench.perception.cloud import depth_to_points
 from ipbench.perception.viewset import ViewSet
 from ipbench.policies import EVAL_CAMERAS
@@ -35,7 +35,11 @@ V2 = DatasetConfig(env_id="ipbench/Sorting-v2", in_hand_views=2, in_hand_placeme
 
 @pytest.mark.parametrize(
     "name",
-    ["ipbench.eval.hand_factors", "ipbench.eval.in_hand_ablation", "ipbench.eval.in_hand_report"],
+    [
+        "ipbench.eval.capture.hand_factors",
+        "ipbench.eval.perception.in_hand_ablation",
+        "ipbench.eval.perception.in_hand_report",
+    ],
 )
 def test_export_lists_name_the_public_definitions(name):
     assert_exports(name)
@@ -188,7 +192,7 @@ def _fake_views(dataset, seed: int) -> ViewSet:
 
 
 def test_capture_renders_each_instance_once_for_every_row(tmp_path, monkeypatch):
-    import ipbench.eval.in_hand_ablation as ablation
+    import ipbench.eval.perception.in_hand_ablation as ablation
 
     small = DatasetConfig(env_id="ipbench/Sorting-v2")
     calls = []
@@ -214,7 +218,7 @@ def test_capture_renders_each_instance_once_for_every_row(tmp_path, monkeypatch)
 
 
 def test_ablation_scores_every_row_per_split(tmp_path, monkeypatch):
-    import ipbench.eval.in_hand_ablation as ablation
+    import ipbench.eval.perception.in_hand_ablation as ablation
 
     config = PerceptionEvalConfig.for_env("ipbench/Sorting-v2", codebook_size=8)
     assert config.ablation  # the benchmark runs it on v2
@@ -241,7 +245,7 @@ def test_ablation_scores_every_row_per_split(tmp_path, monkeypatch):
 
 
 def test_gripper_geoms_are_the_palm_and_fingers():
-    from ipbench.eval.hand_factors import gripper_geoms
+    from ipbench.eval.capture.hand_factors import gripper_geoms
 
     env = gym.make(V2.env_id, cameras=EVAL_CAMERAS)
     env.reset(seed=0)

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import pytest
 
-from ipbench.eval.label_curve import label_curve
+from ipbench.eval.sorting.label_curve import label_curve
 
 
 def _d(conf: float, first: str, final: str, truth: str | None, views: int = 3) -> dict:
@@ -42,7 +42,7 @@ def test_scenes_without_an_inspect_everything_run_are_left_out() -> None:
 
 
 def test_the_lines_set_each_measured_run_beside_the_labels_read_off() -> None:
-    from ipbench.eval.label_curve import label_curve_lines
+    from ipbench.eval.sorting.label_curve import label_curve_lines
 
     decisions = [_d(0.9, "mug", "mug", "mug"), _d(0.4, "bowl", "mug", "mug")]
     runs = [

@@ -10,9 +10,9 @@ import numpy as np
 import pytest
 from small_models import small_models
 
-import ipbench.eval.sorting as sorting
-from ipbench.eval.sorting import SortingEvalConfig, Task
-from ipbench.eval.sorting_report import LOSSES, loss_decomposition, write_report
+import ipbench.eval.sorting.evaluate as sorting
+from ipbench.eval.sorting.evaluate import SortingEvalConfig, Task
+from ipbench.eval.sorting.report import LOSSES, loss_decomposition, write_report
 from ipbench.policies.oracle import true_category, true_object
 
 FAST = SortingEvalConfig(scenes=("uncluttered",), seeds=(0,), steps_per_object=1)

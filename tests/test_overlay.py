@@ -13,7 +13,7 @@ import pytest
 import ipbench.envs  # noqa: F401  (registers the environments)
 from ipbench.assets.objects import CATEGORIES
 from ipbench.envs.sensors import camera_pose, intrinsics
-from ipbench.eval.overlay import (
+from ipbench.eval.sorting.overlay import (
     DetectionLike,
     SemanticRender,
     SemanticVideoRecorder,

@@ -10,8 +10,8 @@ import pytest
 from exports import assert_exports
 
 from ipbench.assets.objects import CATEGORIES
-from ipbench.eval.dataset import DatasetConfig, ViewSet, load_or_build
-from ipbench.eval.perception import (
+from ipbench.eval.capture.dataset import DatasetConfig, ViewSet, load_or_build
+from ipbench.eval.perception.evaluate import (
     CONDITIONS,
     SPLIT_TESTS,
     PerceptionEvalConfig,
@@ -36,10 +36,10 @@ TINY = DatasetConfig(
 @pytest.mark.parametrize(
     "name",
     [
-        "ipbench.eval.dataset",
+        "ipbench.eval.capture.dataset",
         "ipbench.perception.viewset",
-        "ipbench.eval.hand_views",
-        "ipbench.eval.perception",
+        "ipbench.eval.capture.hand_views",
+        "ipbench.eval.perception.evaluate",
     ],
 )
 def test_export_lists_name_the_public_definitions(name):
@@ -92,7 +92,7 @@ def test_a_wide_bowl_is_captured_in_hand() -> None:
     pads under its rim; with the pads 2 cm lower (version 1) it held none, and the in-hand
     model had never seen one."""
     from ipbench.assets.objects import instances
-    from ipbench.eval.hand_views import render_in_hand_views
+    from ipbench.eval.capture.hand_views import render_in_hand_views
 
     config = DatasetConfig(env_id="ipbench/Sorting-v2", in_hand_views=2, in_hand_placements=1)
     bowl = instances(catalog="v2", family="noodle")[0]
@@ -109,7 +109,7 @@ def test_each_condition_trains_on_its_own_known_views(views):
 
 
 def test_in_hand_models_are_cached_apart_and_need_in_hand_views(views, tmp_path, monkeypatch):
-    import ipbench.eval.perception as perception
+    import ipbench.eval.perception.evaluate as perception
 
     config = PerceptionEvalConfig(dataset=TINY, codebook_size=16)
     monkeypatch.setattr(perception, "load_or_build", lambda cache, dataset, **_: views)
@@ -148,7 +148,7 @@ def test_cache_is_reused_and_a_corrupt_file_is_rebuilt(cache, views, capsys):
 
 
 def test_training_only_build_renders_just_the_known_instances(cache, views, tmp_path, monkeypatch):
-    import ipbench.eval.dataset as dataset
+    import ipbench.eval.capture.dataset as dataset
 
     known = views.subset(views.known & (views.source != "cluttered"))
     # from the parts of a whole build: exactly the known views of the whole set, in order
@@ -281,7 +281,7 @@ def test_v2_dataset_uses_the_v2_objects_and_sensor():
 
 
 def test_sensor_ablation_switches_each_effect_off_in_turn(tmp_path, monkeypatch):
-    import ipbench.eval.perception as perception
+    import ipbench.eval.perception.evaluate as perception
 
     seen = []
 

@@ -57,4 +57,4 @@ def test_package_exports_are_current():
 
     for name in perception.__all__:
         assert hasattr(perception, name), name
-    assert "ipbench.eval.dataset" not in perception.__dict__  # no simulator import
+    assert "ipbench.eval.capture.dataset" not in perception.__dict__  # no simulator import

@@ -95,7 +95,7 @@ def test_released_ids_refuse_the_pile_and_list_their_scenes(env_id):
 def test_evaluation_takes_the_pile_and_keeps_its_validation_scenes(monkeypatch):
     """``--scenes uncluttered,cluttered,pile`` passes the evaluation's check; the validation
     scenes that choose the thresholds stay the standard ones."""
-    import ipbench.eval.sorting as sorting
+    import ipbench.eval.sorting.evaluate as sorting
 
     config = sorting.SortingEvalConfig(
         scenes=("uncluttered", "cluttered", "pile"), validation_seeds=(1000, 1001)

@@ -167,7 +167,7 @@ def _views(rng: np.random.Generator) -> ViewSet:
 
 
 def test_trained_models_caches_the_ensemble_beside_the_gp(tmp_path, monkeypatch):
-    import ipbench.eval.perception as perception
+    import ipbench.eval.perception.evaluate as perception
 
     views = _views(np.random.default_rng(0))
     monkeypatch.setattr(perception, "load_or_build", lambda cache, dataset, **_: views)

@@ -1,5 +1,5 @@
 """Views and models prepared in one pool: the right order, and the same models as one stage
-after the other (ipbench.eval.prepare)."""
+after the other (ipbench.eval.perception.prepare)."""
 
 from __future__ import annotations
 
@@ -9,9 +9,14 @@ import numpy as np
 import pytest
 
 from ipbench.assets.objects import CATEGORIES
-from ipbench.eval import prepare
-from ipbench.eval.dataset import DatasetConfig, ViewSet
-from ipbench.eval.perception import PerceptionEvalConfig, model_key, model_path, trained_models
+from ipbench.eval.capture.dataset import DatasetConfig, ViewSet
+from ipbench.eval.perception import prepare
+from ipbench.eval.perception.evaluate import (
+    PerceptionEvalConfig,
+    model_key,
+    model_path,
+    trained_models,
+)
 
 TINY = DatasetConfig(
     yaw_step_deg=90.0,
@@ -122,12 +127,12 @@ def test_validation_views_in_the_pool_give_the_evidence_of_a_pool_of_their_own(
     tmp_path, monkeypatch
 ):
     """From an empty cache the threshold's validation views are taken in the preparation pool
-    (:func:`ipbench.eval.sorting._validation_scene`); the evidence is what the separate
+    (:func:`ipbench.eval.sorting.evaluate._validation_scene`); the evidence is what the separate
     validation pool gathers with the same model."""
     import json
 
     from ipbench.envs.layout import SCENES
-    from ipbench.eval import sorting
+    from ipbench.eval.sorting import evaluate as sorting
 
     monkeypatch.setattr(sorting, "SCENES", {"uncluttered": SCENES["uncluttered"]})
     config = sorting.SortingEvalConfig(

@@ -14,7 +14,7 @@ a pick. So every observation is checked on every platform:
   compact summaries; ``<tag>`` is a hash of the fingerprint);
 * **within tolerance** elsewhere: compact summaries of each observation (:func:`summarize`:
   8x8 block means of each image, the vectors in full) are compared with a platform-family
-  file's, through :func:`ipbench.eval.check.check_report`, with the tolerances of
+  file's, through :func:`ipbench.eval.repro.check.check_report`, with the tolerances of
   :data:`TOLERANCES` (measured spreads there). What is compared depends on the stage's
   :func:`regime`: a settled view is compared in full, a pile's reset by its robot and cameras
   and whole-image means, a Sorting step (after a pick and place, whose contacts diverge
@@ -46,8 +46,8 @@ import pytest
 
 import ipbench.envs  # noqa: F401
 from ipbench.envs.sorting import WRIST_CAMERA
-from ipbench.eval.check import check_report, format_report
-from ipbench.eval.digests import digest_arrays, platform_info
+from ipbench.eval.repro.check import check_report, format_report
+from ipbench.eval.repro.digests import digest_arrays, platform_info
 from ipbench.policies.scripted import GroundTruthSorter
 
 __all__ = [
@@ -118,7 +118,7 @@ def _first_action(env_id: str, obs: dict, info: dict):
 def fingerprint() -> dict[str, object]:
     """What bit-exact reproduction depends on: the CPU model, the kernels numpy and BLAS
     dispatch to (an AVX2 and an AVX-512 machine of one CPU model differ), the numeric
-    libraries and the OpenGL renderer (:func:`ipbench.eval.digests.platform_info`)."""
+    libraries and the OpenGL renderer (:func:`ipbench.eval.repro.digests.platform_info`)."""
     info = platform_info()
     keys = ("cpu", "mujoco", "numpy", "opencv", "numpy_simd", "blas", "gl")
     return {k: info[k] for k in keys}
@@ -206,7 +206,7 @@ def _tolerances(summary: dict[str, float]) -> dict[str, tuple[float, float]]:
 
 
 def _stage(digests: dict[str, str], summary: dict[str, float]) -> dict:
-    """One stage in :mod:`ipbench.eval.check`'s result layout."""
+    """One stage in :mod:`ipbench.eval.repro.check`'s result layout."""
     parts = dict(sorted(digests.items()))
     return {
         "digest": digest_arrays(*(f"{k}={v}" for k, v in parts.items())),
@@ -216,7 +216,7 @@ def _stage(digests: dict[str, str], summary: dict[str, float]) -> dict:
 
 
 def tolerance_report(env_id: str, scene: str, seed: int, got: dict, reference: dict) -> dict:
-    """:func:`~ipbench.eval.check.check_report` of the observations ``got``
+    """:func:`~ipbench.eval.repro.check.check_report` of the observations ``got``
     (:func:`observations`) against a platform-family file's ``reference`` (its digests and
     summaries); stages are named ``scene/seed/stage``."""
     case, results, stages, tolerances = f"{scene}/{seed}", {}, {}, {}

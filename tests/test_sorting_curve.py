@@ -7,7 +7,7 @@ import json
 
 import pytest
 
-from ipbench.eval.sorting_curve import (
+from ipbench.eval.sorting.curve import (
     curve,
     decomposition,
     per_seed_scores,

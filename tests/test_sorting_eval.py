@@ -13,10 +13,15 @@ import pytest
 from small_models import small_models
 
 import ipbench.envs  # noqa: F401
-import ipbench.eval.sorting as sorting
+import ipbench.eval.sorting.evaluate as sorting
 from ipbench.envs.layout import SCENES, STANDARD_SCENES
-from ipbench.eval.dataset import DATASET_VERSION
-from ipbench.eval.sorting import SortingEvalConfig, SortingEvalError, Task, run_sorting_eval
+from ipbench.eval.capture.dataset import DATASET_VERSION
+from ipbench.eval.sorting.evaluate import (
+    SortingEvalConfig,
+    SortingEvalError,
+    Task,
+    run_sorting_eval,
+)
 from ipbench.policies import POLICIES, PolicyModels
 from ipbench.policies.threshold import choose_threshold
 
@@ -238,7 +243,7 @@ def test_validation_evidence_is_cached_across_targets_and_rebuilt_when_corrupt(
 
 
 def test_validation_evidence_is_in_task_order_whatever_order_workers_finish(monkeypatch):
-    import ipbench.eval.sorting as sorting
+    import ipbench.eval.sorting.evaluate as sorting
 
     config = SortingEvalConfig(validation_seeds=(1000, 1001, 1002))
 
@@ -258,7 +263,7 @@ def test_validation_evidence_is_in_task_order_whatever_order_workers_finish(monk
 def test_runs_and_thresholds_of_other_policy_code_are_never_reused(monkeypatch):
     """The policy code's version is in the run fingerprint (a folder of other policy code is
     refused, not resumed) and in the cached threshold evidence's key (chosen again)."""
-    import ipbench.eval.sorting as sorting
+    import ipbench.eval.sorting.evaluate as sorting
 
     config = sorting.SortingEvalConfig()
     model = type("Model", (), {"key": "m"})()
@@ -271,7 +276,7 @@ def test_runs_and_thresholds_of_other_policy_code_are_never_reused(monkeypatch):
 @pytest.fixture(scope="module")
 def wrist_calibration(tmp_path_factory) -> Path:
     """``ipbench calibrate --cameras wrist --robot-seed 3``'s routine, 8 poses (a few s)."""
-    from ipbench.eval.calibrate import CalibrationCaptureConfig, calibrate_cell
+    from ipbench.eval.calibration.calibrate import CalibrationCaptureConfig, calibrate_cell
 
     config = CalibrationCaptureConfig(cameras=("wrist",), poses_per_camera=8, robot_seed=3)
     return calibrate_cell(config).save(tmp_path_factory.mktemp("cal") / "wrist.json")

@@ -8,7 +8,7 @@ import math
 import numpy as np
 import pytest
 
-from ipbench.eval.sorting_report import (
+from ipbench.eval.sorting.report import (
     THESIS_TABLE_5_1,
     PairedTest,
     ReportPaths,

@@ -28,7 +28,7 @@ from ipbench.envs.depth_noise import (
 )
 from ipbench.envs.sensors import SensorRenderer, intrinsics
 from ipbench.envs.structured_light import projector_lit, projector_visible
-from ipbench.eval.digests import synthetic_depth_images
+from ipbench.eval.repro.digests import synthetic_depth_images
 
 H, W, F, B = 480, 640, 570.0, 0.075
 U = ((np.arange(W) - (W - 1) / 2) / F)[None, :]

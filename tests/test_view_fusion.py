@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 
 from ipbench.assets.objects import CATEGORIES, instances
-from ipbench.eval.in_hand_report import fusion_table, in_hand_ablation_table
-from ipbench.eval.view_fusion import (
+from ipbench.eval.perception.in_hand_report import fusion_table, in_hand_ablation_table
+from ipbench.eval.perception.view_fusion import (
     FUSION_VIEWS,
     fused_accuracy,
     fusion_by_views,

@@ -8,14 +8,14 @@ import numpy as np
 import pytest
 
 from ipbench.envs.depth_noise import STRUCTURED_LIGHT, without_effect
-from ipbench.eval.calibrate import (
+from ipbench.eval.calibration.calibrate import (
     CalibrationCaptureConfig,
     calibrate_capture,
     calibration_truth,
     capture_views,
 )
-from ipbench.eval.calibration_reconstruction import ReconstructionError
-from ipbench.eval.wrist_reconstruction import (
+from ipbench.eval.calibration.reconstruction import ReconstructionError
+from ipbench.eval.calibration.wrist_reconstruction import (
     ROBOT_FRAME_CHAINS,
     reconstruct_wrist,
     robot_frame_summary,

@@ -1,0 +1,3 @@
+"""``ipbench bench``: speed figures printed, never asserted — the simulated cell (``sim``), sorting
+episodes (``episodes``), exploration and perception.
+"""

@@ -1,0 +1,130 @@
+"""The exploration commands of ``ipbench`` (thesis ch. 3).
+
+ipbench eval exploration [--scenes simple,medium,complex] [--policies ...] [--features sift,...]
+                         [--seeds A:B] [--budget N] [--workers N] [--video] [--out DIR]
+                         [--cache DIR]
+ipbench bench exploration [--features ...] [--cache DIR] [--json [FILE]]
+"""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+from ipbench.eval.cli_options import add_json_option
+
+__all__ = ["add_bench_exploration", "add_eval_exploration", "main_exploration"]
+
+
+def _names(text: str, valid: tuple[str, ...], what: str) -> tuple[str, ...]:
+    names = tuple(n.strip() for n in text.split(",") if n.strip())
+    bad = [n for n in names if n not in valid]
+    if bad or not names:
+        raise SystemExit(
+            f"ipbench: unknown {what} {', '.join(bad) or '(none)'}; valid: {', '.join(valid)}"
+        )
+    return names
+
+
+def add_eval_exploration(eval_sub) -> argparse.ArgumentParser:
+    """Register ``eval exploration`` on ``eval_sub`` (an ``add_subparsers()`` object)."""
+    p = eval_sub.add_parser(
+        "exploration",
+        help="explore table scenes with the stereo head and report objects (thesis Tables 3.2/3.3)",
+        description="Runs every exploration policy with every feature type on every scene for "
+        "every seed of ipbench/Exploration-v0 (the same seeds for all: paired). The "
+        "recognition database of each feature type is captured by the head on first use and "
+        "cached in --cache. Each finished episode is appended to OUT/episodes.jsonl, so an "
+        "interrupted run resumes. Writes OUT/summary.json, OUT/exploration.md, OUT/recall.png "
+        "and (--video) MP4s of the left head view.",
+        epilog="example: ipbench eval exploration --scenes simple --policies "
+        "active-vision,random-gaze --seeds 0:3",
+    )
+    p.add_argument(
+        "--scenes", default="simple,medium,complex", help="comma-separated scenes: {LEVELS}"
+    )
+    p.add_argument(
+        "--policies",
+        default="active-vision,random-gaze,raster-scan,oracle-gaze",
+        help="comma-separated policies: {EXPLORATION_POLICIES}",
+    )
+    p.add_argument("--features", default="sift", help="comma-separated feature types: {FEATURES}")
+    p.add_argument(
+        "--seeds", default="0:10", help="episode seeds: A:B (A..B-1) or a comma-separated list"
+    )
+    p.add_argument("--budget", type=int, default=30, help="saccades before an episode is cut")
+    p.add_argument("--workers", type=int, default=1, help="episodes run in parallel")
+    p.add_argument("--backend", default="process", help="one of {BACKENDS}")
+    p.add_argument("--ray-address", default=None, help="Ray cluster address (--backend ray)")
+    p.add_argument("--video", action="store_true", help="an MP4 per policy, feature and scene")
+    p.add_argument("--out", type=Path, default=Path("results/exploration"), help="report folder")
+    p.add_argument(
+        "--cache", type=Path, default=Path("results/cache"), help="database cache folder"
+    )
+    return p
+
+
+def add_bench_exploration(bench_sub) -> argparse.ArgumentParser:
+    """Register ``bench exploration`` on ``bench_sub``."""
+    p = bench_sub.add_parser(
+        "exploration",
+        help="stereo rendering fps and the saccade cycle's wall time per feature type",
+        description="Complex scene at 1024x680, one core: stereo pairs/s, and the "
+        "active-vision policy's cycle (render pair, features, recognition, stereo, decision) "
+        "per feature type (databases from --cache, captured if missing).",
+        epilog="example: ipbench bench exploration --features sift,orb",
+    )
+    p.add_argument("--features", default="sift,kaze,akaze,orb", help="feature types: {FEATURES}")
+    p.add_argument(
+        "--cache", type=Path, default=Path("results/cache"), help="database cache folder"
+    )
+    add_json_option(p)
+    return p
+
+
+def main_exploration(args, seeds, writable, print_figures) -> int:
+    """Run ``eval exploration`` or ``bench exploration`` (helpers from :mod:`.cli`)."""
+    from ipbench.perception.features2d import FEATURE_TYPES
+
+    features = _names(args.features, FEATURE_TYPES, "feature type(s)")
+    if args.command == "bench":
+        from ipbench.eval.bench.exploration import bench_exploration
+        from ipbench.eval.bench.sim import report
+
+        writable(args.cache, "--cache")
+        print_figures(bench_exploration(args.cache, features), args.json, report)
+        return 0
+    from ipbench.envs.exploration_scene import LEVELS
+    from ipbench.eval.exploration.evaluate import (
+        ExplorationEvalConfig,
+        ExplorationEvalError,
+        run_exploration_eval,
+    )
+    from ipbench.policies.exploration import EXPLORATION_POLICIES
+
+    try:
+        config = ExplorationEvalConfig(
+            scenes=_names(args.scenes, tuple(LEVELS), "scene(s)"),
+            policies=_names(args.policies, EXPLORATION_POLICIES, "policy(ies)"),
+            features=features,
+            seeds=seeds(args.seeds),
+            saccade_budget=args.budget,
+            workers=args.workers,
+            backend=args.backend,
+            ray_address=args.ray_address,
+            video=args.video,
+        )
+        writable(args.out, "--out")
+        writable(args.cache, "--cache")
+        summary = run_exploration_eval(args.out, args.cache, config)
+    except ExplorationEvalError as err:
+        raise SystemExit(f"ipbench: {err}") from err
+    for scene, by_policy in summary.items():
+        for policy, by_feature in by_policy.items():
+            row = ", ".join(
+                f"{f} {m['performance_mean']:.0%} [{m['ci_low']:.0%}, {m['ci_high']:.0%}]"
+                for f, m in by_feature.items()
+            )
+            print(f"{scene} {policy}: {row}")
+    print(f"report written to {(args.out / 'exploration.md').resolve()}")
+    return 0

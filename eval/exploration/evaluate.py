@@ -1,0 +1,366 @@
+"""``ipbench eval exploration``: active binocular exploration as episodes (thesis Tables 3.2/3.3).
+
+Policies x feature types x scenes x seeds, the same seeds for every policy (paired). Steps:
+
+1. The recognition database of each feature type is loaded from the cache or built from views
+   the head takes of each database object alone (:mod:`ipbench.eval.capture.exploration_database`).
+2. Episodes of ``ipbench/Exploration-v0`` run through the shared machinery
+   (:mod:`ipbench.eval.episodes`: the resumable ``episodes.jsonl``, ``run.json``'s fingerprint,
+   serial / process / Ray executors), each record written as soon as it finishes.
+3. ``summary.json``, ``exploration.md`` and ``recall.png``
+   (:mod:`ipbench.eval.exploration.report`) over every episode in the folder (runs of other
+   scenes, policies, feature types or seeds with the same settings add up), and optionally
+   one MP4 per policy, feature and scene (its first seed) of the left head view with the
+   hypotheses, the fixation and the inhibited places (:mod:`ipbench.eval.exploration.video`).
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import time
+from collections import Counter
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+
+import gymnasium as gym
+import numpy as np
+from threadpoolctl import threadpool_limits
+
+import ipbench.envs  # noqa: F401  (registers the environments)
+from ipbench.envs.exploration_scene import LEVELS
+from ipbench.eval.capture.exploration_database import DatabaseCaptureConfig, load_or_build_database
+from ipbench.eval.episodes import BACKENDS, check_out, open_run, record_episodes, run_episodes
+from ipbench.perception.features2d import FEATURE_TYPES
+from ipbench.perception.object_database import ObjectDatabase
+from ipbench.perception.saliency import INHIBITION_RADIUS_RAD
+from ipbench.policies.exploration import (
+    EXPLORATION_POLICIES,
+    EXPLORATION_POLICY_VERSION,
+    READS_INFO,
+    make_exploration_policy,
+)
+
+__all__ = [
+    "ENV_ID",
+    "EPISODE_VERSION",
+    "ExplorationEvalConfig",
+    "ExplorationEvalError",
+    "ExplorationTask",
+    "run_exploration_episode",
+    "run_exploration_eval",
+]
+
+ENV_ID = "ipbench/Exploration-v0"
+EPISODE_VERSION = 1
+"""Version of the episode record (part of the run fingerprint)."""
+
+
+class ExplorationEvalError(ValueError):
+    """Bad evaluation settings or output folder; the message says what is valid."""
+
+
+@dataclass(frozen=True)
+class ExplorationEvalConfig:
+    """What ``ipbench eval exploration`` runs.
+
+    Attributes
+    ----------
+    scenes, policies, features : names (:data:`~ipbench.envs.exploration_scene.LEVELS`,
+        :data:`~ipbench.policies.exploration.EXPLORATION_POLICIES`,
+        :data:`~ipbench.perception.features2d.FEATURE_TYPES`).
+    seeds : episode seeds, the same for every policy and feature (paired); the thesis used 3
+        random home positions per scene, we default to 10.
+    saccade_budget : saccades before an episode is cut (the env's truncation).
+    head_size : (height, width) px of the head images.
+    workers, backend, ray_address : parallel episodes (:mod:`ipbench.eval.episodes`).
+    video : one MP4 per policy, feature and scene (its first seed).
+    database : how the recognition database's views are captured.
+    """
+
+    scenes: tuple[str, ...] = tuple(LEVELS)
+    policies: tuple[str, ...] = EXPLORATION_POLICIES
+    features: tuple[str, ...] = ("sift",)
+    seeds: tuple[int, ...] = tuple(range(10))
+    saccade_budget: int = 30
+    head_size: tuple[int, int] = (680, 1024)
+    workers: int = 1
+    backend: str = "process"
+    ray_address: str | None = None
+    video: bool = False
+    database: DatabaseCaptureConfig = field(default_factory=DatabaseCaptureConfig)
+
+    def __post_init__(self) -> None:
+        for kind, names, valid in (
+            ("scene", self.scenes, tuple(LEVELS)),
+            ("policy", self.policies, EXPLORATION_POLICIES),
+            ("feature type", self.features, FEATURE_TYPES),
+        ):
+            bad = [n for n in names if n not in valid] or ([] if names else ["(none)"])
+            if bad:
+                raise ExplorationEvalError(f"unknown {kind} {bad[0]!r}; valid: {', '.join(valid)}")
+            if len(set(names)) != len(names):
+                raise ExplorationEvalError(f"a {kind} is given twice in {', '.join(names)}")
+        if not self.seeds or any(int(s) < 0 for s in self.seeds):
+            raise ExplorationEvalError(f"seeds must be non-negative integers, got {self.seeds!r}")
+        repeated = sorted(s for s, n in Counter(self.seeds).items() if n > 1)
+        if repeated:
+            raise ExplorationEvalError(
+                f"seeds repeat: {', '.join(map(str, repeated))}; give each seed once"
+            )
+        if self.saccade_budget < 1:
+            raise ExplorationEvalError(f"saccade_budget must be >= 1, got {self.saccade_budget}")
+        if self.backend not in BACKENDS:
+            raise ExplorationEvalError(f"backend {self.backend!r}; valid: {', '.join(BACKENDS)}")
+        if self.ray_address is not None and self.backend != "ray":
+            raise ExplorationEvalError(
+                f"a Ray address ({self.ray_address!r}) is used by the ray backend only; add "
+                "--backend ray, or drop --ray-address"
+            )
+        if self.workers < 1:
+            raise ExplorationEvalError(f"workers must be >= 1, got {self.workers}")
+
+    def fingerprint(self) -> str:
+        """Hash of everything that changes an episode's result (not which episodes run, nor
+        where, nor videos)."""
+        drop = ("scenes", "policies", "features", "seeds", "workers", "backend", "ray_address")
+        keep = {k: v for k, v in asdict(self).items() if k not in (*drop, "video")}
+        keep["database"] = self.database.key()
+        text = json.dumps(
+            [keep, EPISODE_VERSION, EXPLORATION_POLICY_VERSION], sort_keys=True, default=str
+        )
+        return hashlib.sha256(text.encode()).hexdigest()[:16]
+
+
+@dataclass(frozen=True)
+class ExplorationTask:
+    """One episode to run."""
+
+    scene: str
+    policy: str
+    feature: str
+    seed: int
+    video: Path | None = None
+
+
+def _record_key(record: dict) -> tuple:
+    return (record["scene"], record["policy"], record["feature"], int(record["seed"]))
+
+
+def _cost(task: ExplorationTask) -> float:
+    """Expected relative wall time (longest first): objects to recognise, times a slower
+    detector's factor (KAZE's nonlinear scale space is the slowest; bench exploration)."""
+    factor = {"kaze": 3.0, "sift": 1.5}.get(task.feature, 1.0)
+    return LEVELS[task.scene].n_table * factor
+
+
+# -- one episode ---------------------------------------------------------------------------------
+def run_exploration_episode(
+    task: ExplorationTask, databases: dict[str, ObjectDatabase], config: ExplorationEvalConfig
+) -> dict:
+    """Run one episode and return its record (schema: :mod:`ipbench.eval.exploration.report`)."""
+    with threadpool_limits(1):
+        import cv2
+
+        cv2.setNumThreads(1)
+        return _run_episode(task, databases, config)
+
+
+def _project(points: list[np.ndarray], K: np.ndarray, pose: np.ndarray) -> list[np.ndarray]:
+    """Image points (2,) of world ``points`` in front of a camera (``K``, world-from-camera
+    ``pose``)."""
+    out = []
+    for p in points:
+        c = pose[:3, :3].T @ (np.asarray(p, float) - pose[:3, 3])
+        if c[2] > 1e-6:
+            out.append((K @ (c / c[2]))[:2])
+    return out
+
+
+def _video_frame(recorder, obs: dict, policy) -> None:
+    K, pose = obs["head_left_K"], obs["head_left_pose"]
+    seen = policy.last_look
+    hypotheses = []
+    if seen is not None:
+        verified = {(c.label, tuple(np.round(c.left_centre, 3))) for c in seen.candidates}
+        for h in seen.recognition_left.hypotheses:
+            key = (h.class_name, tuple(np.round(h.centre, 3)))
+            hypotheses.append((h.class_name, h.outline, key in verified))
+    ior = getattr(policy, "inhibition", None)
+    rays = [] if ior is None else [pose[:3, 3] + d for d in ior.directions]
+    reported = [
+        (label, xy)
+        for label, xy in zip(
+            [r[0] for r in policy.reported],
+            _project([r[1] for r in policy.reported], K, pose),
+            strict=False,
+        )
+    ]
+    recorder.add(obs["head_left"], hypotheses, K[:2, 2].copy(), _project(rays, K, pose), reported)
+
+
+def _run_episode(
+    task: ExplorationTask, databases: dict[str, ObjectDatabase], config: ExplorationEvalConfig
+) -> dict:
+    t0 = time.perf_counter()
+    env = gym.make(
+        ENV_ID,
+        scene=task.scene,
+        head_size=tuple(config.head_size),
+        saccade_budget=config.saccade_budget,
+    )
+    policy = make_exploration_policy(task.policy, databases[task.feature])
+    recorder = None
+    if task.video:
+        from ipbench.eval.exploration.video import ExplorationVideoRecorder
+
+        recorder = ExplorationVideoRecorder(fps=2)
+    policy.reset(task.seed)
+    obs, info = env.reset(seed=task.seed)
+    n_database = int(info["score"]["not_found"])
+    objects = info["objects"]
+    recall, sim = [0.0], [0.0]
+    steps = 0
+    localisation: list[float] = []
+    mistaken: set[str] = set()  # instances an earlier report took for another class
+    recovered = 0
+    reasons: Counter = Counter()
+    terminated = truncated = False
+    while not (terminated or truncated):
+        action = policy.act(obs, info if task.policy in READS_INFO else None)
+        if recorder is not None:
+            _video_frame(recorder, obs, policy)
+        obs, _, terminated, truncated, info = env.step(action)
+        steps += 1
+        outcome = info["report"]
+        if outcome is not None:
+            if outcome["kind"] == "true_positive":
+                true = np.asarray(objects[outcome["instance"]]["position"])
+                reported = np.asarray(action["report"]["position"], float)
+                localisation.append(round(1000 * float(np.linalg.norm(reported - true)), 2))
+                recovered += outcome["instance"] in mistaken
+            else:
+                reasons[outcome["reason"]] += 1
+                if outcome["reason"] == "wrong_class":
+                    mistaken.add(outcome["instance"])
+        if not terminated:  # every step but "done" is a saccade
+            found = info["score"]["true_positives"]
+            recall.append(found / n_database if n_database else 1.0)
+            sim.append(sim[-1] + float(info["saccade_s"]))
+    if recorder is not None:
+        recorder.add(obs["head_left"], [], obs["head_left_K"][:2, 2].copy(), [], [])
+        recorder.save(task.video)
+    env.close()
+    to_all = next((k for k, r in enumerate(recall) if r >= 1.0), None)
+    score = info["score"]
+    return {
+        "scene": task.scene,
+        "policy": task.policy,
+        "feature": task.feature,
+        "seed": task.seed,
+        "n_database": n_database,
+        "true_positives": int(score["true_positives"]),
+        "false_positives": int(score["false_positives"]),
+        "not_found": int(score["not_found"]),
+        "performance": float(score["performance"]),
+        "recovered": int(recovered),
+        "fp_reasons": {
+            r: int(reasons[r]) for r in ("wrong_class", "already_reported", "nothing_there")
+        },
+        "saccades": int(info["saccades"]),
+        "sim_time_s": round(sim[-1], 3),
+        "wall_time_s": round(time.perf_counter() - t0, 2),
+        "steps": steps,
+        "recall_curve": [round(r, 4) for r in recall],
+        "saccades_to_all": to_all,
+        "sim_s_to_all": None if to_all is None else round(sim[to_all], 3),
+        "refixation_rate": refixation_rate(policy.fixations),
+        "localisation_mm": localisation,
+        "halted": bool(terminated),
+        "truncated": bool(truncated),
+        "video": str(task.video) if task.video else None,
+        "cycle_s": round((time.perf_counter() - t0) / max(steps, 1), 3),
+    }
+
+
+def refixation_rate(fixations, radius_rad: float = INHIBITION_RADIUS_RAD) -> float:
+    """Share of the saccades (vergence corrections and halts aside) that land within
+    ``radius_rad`` (inhibition of return's radius) of a place already fixated."""
+    axes = [np.asarray(f.axis, float) for f in fixations]
+    moves = [k for k in range(1, len(axes)) if fixations[k - 1].kind not in ("verge", "halt")]
+    if not moves:
+        return 0.0
+    cos = np.cos(radius_rad)
+    again = sum(any(float(axes[k] @ axes[j]) >= cos for j in range(k)) for k in moves)
+    return round(again / len(moves), 4)
+
+
+# -- the evaluation -------------------------------------------------------------------------------
+def run_exploration_eval(
+    out: Path,
+    cache: Path,
+    config: ExplorationEvalConfig = ExplorationEvalConfig(),
+    progress: bool = True,
+) -> dict:
+    """Run (or resume) the evaluation into ``out``; returns the summary."""
+    from ipbench.eval.exploration.report import write_exploration_report
+
+    out = Path(out)
+    fingerprint = config.fingerprint()
+    check_out(out, fingerprint, ExplorationEvalError)
+    databases = {
+        f: load_or_build_database(f, Path(cache), config.database, progress)
+        for f in config.features
+    }
+    log = open_run(
+        out,
+        fingerprint,
+        {
+            "env": ENV_ID,
+            "policy_version": EXPLORATION_POLICY_VERSION,
+            "databases": {f: d.stats() for f, d in databases.items()},
+            "config": asdict(config),
+        },
+        _record_key,
+        ExplorationEvalError,
+    )
+    done = log.done()
+    first = min(config.seeds)
+    tasks = [
+        ExplorationTask(
+            scene,
+            policy,
+            feature,
+            int(seed),
+            out / "videos" / f"{scene}_{policy}_{feature}_seed{seed}.mp4"
+            if config.video and seed == first
+            else None,
+        )
+        for scene in config.scenes
+        for policy in config.policies
+        for feature in config.features
+        for seed in config.seeds
+        if (scene, policy, feature, int(seed)) not in done
+    ]
+    records = run_episodes(
+        run_exploration_episode,
+        tasks,
+        (databases, config),
+        workers=config.workers,
+        backend=config.backend,
+        ray_address=config.ray_address,
+        cost=_cost,
+        error=ExplorationEvalError,
+    )
+    record_episodes(
+        log,
+        records,
+        len(tasks),
+        len(done),
+        lambda r: f"{r['scene']} {r['policy']} {r['feature']} {r['performance']:.0%}",
+        progress,
+    )
+    # the report covers every episode in the folder (all of one fingerprint): a benchmark run
+    # in parts (a feature type at a time, say) ends with one report of all of them
+    write_exploration_report(log.records(), out, config.saccade_budget)
+    return json.loads((out / "summary.json").read_text())
