@@ -15,7 +15,7 @@ database objects they recognise. The public contract:
 * Observation: ``head_left``/``head_right`` (HxWx3 uint8), ``head_*_K`` (3x3), ``head_*_pose``
   (4x4 world-from-camera, OpenCV axes, by forward kinematics of the encoder readings: what
   the robot knows), ``head_qpos`` (4,) encoder readings, rad. ``extrinsics="nominal"`` or
-  ``"calibrated"`` (:mod:`ipbench.envs.extrinsics`): the world is the true cell of
+  ``"calibrated"`` (:mod:`ipbench.envs.cell.extrinsics`): the world is the true cell of
   ``robot_seed`` (images and masks distorted by its lenses), ``head_*_K``/``head_*_pose`` are
   the robot's beliefs and ``head_*_dist`` (5,) the distortion it believes.
 * ``info`` (ground truth, evaluation and oracles only): ``objects`` {name: class (a
@@ -36,6 +36,9 @@ import numpy as np
 from gymnasium import spaces
 
 from ipbench.assets.compose import HEAD_SIDES
+from ipbench.envs.cell.extrinsics import DIST_SIZE, CameraKnowledge, check_extrinsics
+from ipbench.envs.cell.model_errors import sample_model_errors
+from ipbench.envs.errors import InvalidActionError, ResetNeededError
 from ipbench.envs.exploration_scene import (
     DATABASE_CLASSES,
     GAZE_JOINTS,
@@ -44,9 +47,7 @@ from ipbench.envs.exploration_scene import (
     sample_scene,
 )
 from ipbench.envs.exploration_scoring import GroundTruthObject, Scorer
-from ipbench.envs.extrinsics import DIST_SIZE, CameraKnowledge, check_extrinsics, distort_labels
-from ipbench.envs.lens_distortion import distort_image
-from ipbench.envs.model_errors import sample_model_errors
+from ipbench.envs.head_observation import observe_head
 from ipbench.envs.ptu import (
     PtuError,
     PtuSpec,
@@ -55,8 +56,7 @@ from ipbench.envs.ptu import (
     ptu_spec,
     setpoint_step,
 )
-from ipbench.envs.sensors import SensorRenderer, camera_pose, intrinsics
-from ipbench.envs.sorting import InvalidActionError, ResetNeededError
+from ipbench.envs.sensors import SensorRenderer
 
 __all__ = [
     "GAZE_JOINTS",
@@ -89,7 +89,7 @@ class ExplorationConfig:
     max_saccade_time : longest simulated time of one saccade (s); the slowest full swing,
         tilt's 77.7 deg at 60 deg/s, takes 1.3 s.
     extrinsics : ``"true"`` (default), ``"nominal"`` or ``"calibrated"``
-        (:mod:`ipbench.envs.extrinsics`; the module docstring).
+        (:mod:`ipbench.envs.cell.extrinsics`; the module docstring).
     robot_seed : seed of the true cell's model errors (``nominal``/``calibrated`` only).
     calibration : calibration file path for ``extrinsics="calibrated"``, else None.
     """
@@ -332,17 +332,10 @@ class ExplorationEnv(gym.Env):
         mujoco.mj_kinematics(m, fk)
         mujoco.mj_comPos(m, fk)
         mujoco.mj_camlight(m, fk)
-        obs, self._masks = {}, {}
-        for s in HEAD_SIDES:
-            cam = f"head_{s}_camera"
-            obs[f"head_{s}"] = r.render_rgb(d, cam, w, h)
-            obs[f"head_{s}_K"] = intrinsics(m, cam, w, h).K
-            obs[f"head_{s}_pose"] = camera_pose(m, fk, cam)
-            self._masks[s] = self._mask_lut[r.render_segmentation(d, cam, w, h)]
-            if self._knowledge is not None:  # the true lens
-                lens, K = self._errors.distortion[cam], obs[f"head_{s}_K"]  # noqa: N806
-                obs[f"head_{s}"] = distort_image(obs[f"head_{s}"], K, lens)
-                self._masks[s] = distort_labels(self._masks[s], K, lens)
+        lenses = None if self._knowledge is None else self._errors.distortion  # the true lenses
+        obs, self._masks = observe_head(
+            r, m, d, self.config.head_size, pose_data=fk, lenses=lenses, mask_lut=self._mask_lut
+        )
         if self._knowledge is not None:  # what the robot believes, at its encoder readings
             readings = fk.qpos[self._known_qadr]
             sizes = {f"head_{s}": (w, h) for s in HEAD_SIDES}

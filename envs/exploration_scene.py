@@ -41,7 +41,7 @@ from ipbench.assets.objects import (
     resting_poses,
 )
 from ipbench.assets.room import Poster, add_room, layout_posters
-from ipbench.envs.model_errors import ModelErrors, apply_model_errors
+from ipbench.envs.cell.model_errors import ModelErrors, apply_model_errors
 from ipbench.envs.ptu import ptu_spec
 
 __all__ = [
@@ -317,7 +317,7 @@ def build_model(scene: ExplorationScene, errors: ModelErrors | None = None) -> m
     """The work cell in its room with the scene's objects welded to the world (no free joint)
     and its posters, keyframe ``home``: arms at zero, the head at the scene's start gaze,
     every servo holding it. With ``errors``, the TRUE cell: the work cell's spec with
-    :func:`~ipbench.envs.model_errors.apply_model_errors` before the room and objects."""
+    :func:`~ipbench.envs.cell.model_errors.apply_model_errors` before the room and objects."""
     spec = build_workcell_spec()
     if errors is not None:
         apply_model_errors(spec, errors)

@@ -59,7 +59,6 @@ import cv2
 import gymnasium as gym
 import mujoco
 import numpy as np
-from gymnasium import spaces
 
 from ipbench.assets.compose import (
     BIN_INTERIOR,
@@ -70,25 +69,20 @@ from ipbench.assets.compose import (
     build_workcell_spec,
 )
 from ipbench.assets.objects import CATALOGS, CATEGORIES
-from ipbench.envs.depth_noise import STRUCTURED_LIGHT, DepthNoiseConfig, DepthNoiseModel
-from ipbench.envs.extrinsics import (
-    DIST_SIZE,
-    CameraKnowledge,
-    check_extrinsics,
-    distort_labels,
-)
-from ipbench.envs.layout import SCENES, Layout, sample_layout, scenes_for
-from ipbench.envs.lens_distortion import distort_image
-from ipbench.envs.model_errors import apply_model_errors, sample_model_errors
+from ipbench.envs.cell.extrinsics import CameraKnowledge, check_extrinsics, distort_labels
+from ipbench.envs.cell.model_errors import apply_model_errors, sample_model_errors
+from ipbench.envs.errors import InvalidActionError, ResetNeededError
+from ipbench.envs.head_observation import observe_head
+from ipbench.envs.layout import Layout, sample_layout
 from ipbench.envs.robot import MotionConfig, RobotController, ik_model
-from ipbench.envs.sensors import (
-    SensorRenderer,
-    camera_pose,
-    intrinsics,
-    specular_geoms,
-)
+from ipbench.envs.sensors import SensorRenderer, camera_pose, intrinsics, specular_geoms
+from ipbench.envs.sensors.depth_noise import STRUCTURED_LIGHT, DepthNoiseConfig, DepthNoiseModel
+from ipbench.envs.sensors.lens_distortion import distort_image
+from ipbench.envs.sensors.structured_light import UnitError, apply_unit
+from ipbench.envs.settling import settle_gently
 from ipbench.envs.skills import SkillConfig, SkillResult, Skills
-from ipbench.envs.structured_light import UnitError, apply_unit
+from ipbench.envs.sorting_scenes import SCENES, scenes_for
+from ipbench.envs.sorting_spaces import action_space, check_action, observation_space
 from ipbench.envs.world import (
     FAST_PHYSICS,
     PhysicsConfig,
@@ -138,16 +132,6 @@ ROBOT_JOINTS: tuple[str, ...] = (
 """Joint names of ``observation["qpos"]``, in order (rad; the two fingers in m)."""
 WRIST_SIZE = (480, 640)
 _UNSAFE = {"on_table", "in_inspection_area", "in_hand"}
-_GENTLE_TAU = 0.1
-"""Time constant (s) with which a gentle settling damps the objects' velocities."""
-_REST_SPEED, _REST_SPIN = 0.005, 0.05
-"""Speeds (m/s, rad/s) below which every object counts as at rest (gentle settling)."""
-_REST_CHECK = 0.05
-"""Physics time (s) between the checks of a gentle settling."""
-_RELEASE_CALM = 5
-"""Checks in a row that must find the objects at rest, undamped, to end a gentle settling."""
-_WAKE_SPEED = 0.02
-"""Speed (m/s) of an object that damps the objects again during a gentle settling."""
 UNDONE_REASON = "undone: the contact solver blew up during this step, which was rolled back"
 MAX_JAW_OPENING = 0.21
 """The gripper's full jaw opening (m): the largest ``action["opening"]``."""
@@ -194,15 +178,6 @@ def _cameras(cameras) -> tuple[str, ...]:
     return tuple(c for c in CAMERAS if c in cameras)
 
 
-class InvalidActionError(ValueError):
-    """An action outside the action space; the message says which field and what is valid."""
-
-
-class ResetNeededError(RuntimeError, gym.error.ResetNeeded):
-    """``step()`` or ``render()`` without an episode: before the first ``reset()`` or after
-    ``close()``; the message says to call ``reset()``."""
-
-
 @dataclass(frozen=True)
 class SortingConfig:
     """Settings of a sorting episode (defaults are the benchmark's).
@@ -210,7 +185,7 @@ class SortingConfig:
     Attributes
     ----------
     scene : ``"uncluttered"`` or ``"cluttered"`` (thesis Table 5.1); with the v2 catalogue
-        also ``"pile"`` (:data:`~ipbench.envs.layout.SCENES`).
+        also ``"pile"`` (:data:`~ipbench.envs.sorting_scenes.SCENES`).
     head_size : (height, width) of each head image, px (D5100-like 3:2).
     render_size : (height, width) of ``render()`` frames from the overview camera, px.
     max_steps : step limit (truncation); ``None`` = 4 per object + 10.
@@ -242,10 +217,10 @@ class SortingConfig:
         (:class:`~ipbench.envs.world.PhysicsConfig`; the default changes nothing, as v0/v1
         run; ``Sorting-v2``: :data:`~ipbench.envs.world.FAST_PHYSICS`, objects at rest
         sleep).
-    extrinsics : what the robot knows of its cameras (:mod:`ipbench.envs.extrinsics`):
+    extrinsics : what the robot knows of its cameras (:mod:`ipbench.envs.cell.extrinsics`):
         ``"true"`` (default; every released id: the simulator's values, the world as before),
         ``"nominal"`` or ``"calibrated"``: the world is the true cell of ``robot_seed``
-        (:func:`~ipbench.envs.model_errors.sample_model_errors`; images distorted by its
+        (:func:`~ipbench.envs.cell.model_errors.sample_model_errors`; images distorted by its
         lenses, RGB bilinear, depth and ``wrist_mask`` nearest), ``*_K``/``*_pose`` are the
         robot's beliefs, and the observation gains ``wrist_dist``/``head_*_dist`` (5,), the
         distortion the robot believes (zeros for ``nominal``).
@@ -344,45 +319,17 @@ class SortingEnv(gym.Env):
                 self.config.extrinsics, names, self.config.calibration, self.config.robot_seed
             )
             self._errors = sample_model_errors(self.config.robot_seed)
-        hh, hw = self.config.head_size
-        mat = spaces.Box(-np.inf, np.inf, (3, 3), np.float64)
-        pose = spaces.Box(-np.inf, np.inf, (4, 4), np.float64)
-        obs_spaces = {"qpos": spaces.Box(-np.inf, np.inf, (len(self._robot_joints),), np.float64)}
-        if "wrist" in self.config.cameras:
-            obs_spaces |= {
-                "wrist_rgb": spaces.Box(0, 255, (*WRIST_SIZE, 3), np.uint8),
-                "wrist_depth": spaces.Box(
-                    0.0, np.float32(self.config.depth_noise.max_range_m), WRIST_SIZE, np.float32
-                ),
-                "wrist_K": mat,
-                "wrist_pose": pose,
-            }
-        if "head" in self.config.cameras:
-            for side in HEAD_SIDES:
-                obs_spaces |= {
-                    f"head_{side}": spaces.Box(0, 255, (hh, hw, 3), np.uint8),
-                    f"head_{side}_K": mat,
-                    f"head_{side}_pose": pose,
-                }
-        if self._knowledge is not None:  # the distortion the robot believes
-            dist = spaces.Box(-np.inf, np.inf, (DIST_SIZE,), np.float64)
-            obs_spaces |= {f"{c}_dist": dist for c in self._knowledge.cameras}
-        self.observation_space = spaces.Dict(obs_spaces)  # (keys sorted, as before)
-        self.action_space = spaces.Dict(
-            {
-                "command": spaces.Discrete(len(self.commands)),
-                "position": spaces.Box(
-                    np.array([-2.0, -2.0, 0.0], np.float32),
-                    np.array([2.0, 2.0, 2.5], np.float32),
-                    (3,),
-                    np.float32,
-                ),
-                "yaw": spaces.Box(-np.pi, np.pi, (1,), np.float32),
-                "bin": spaces.Discrete(len(CATEGORIES)),
-            }
+        self.observation_space = observation_space(
+            self.config.cameras,
+            len(self._robot_joints),
+            WRIST_SIZE,
+            self.config.head_size,
+            self.config.depth_noise.max_range_m,
+            () if self._knowledge is None else self._knowledge.cameras,
         )
-        if self.config.jaw_opening:
-            self.action_space.spaces["opening"] = spaces.Box(0.0, MAX_JAW_OPENING, (1,), np.float32)
+        self.action_space = action_space(
+            len(self.commands), MAX_JAW_OPENING if self.config.jaw_opening else None
+        )
 
     @property
     def commands(self) -> tuple[str, ...]:
@@ -461,7 +408,13 @@ class SortingEnv(gym.Env):
         self._renderer = SensorRenderer(self.model)
         self._place_arms_at_start()
         if SCENES[self.config.scene].gentle_settle > 0:  # a pile (v2 only)
-            self._settle_gently(SCENES[self.config.scene].gentle_settle)
+            settle_gently(
+                self.model,
+                self.data,
+                self.world.object_bodies,
+                self.robot.hold,
+                SCENES[self.config.scene].gentle_settle,
+            )
         self.robot.hold(self.config.settle_time)
         # (ngeom + 1,): shiny geoms; the last entry stands for the background (id -1)
         self._specular_geoms = np.append(specular_geoms(self.model), False)
@@ -487,7 +440,9 @@ class SortingEnv(gym.Env):
 
     def step(self, action):
         self._require_episode("step")
-        command, position, yaw, bin_index, opening = self._validate(action)
+        command, position, yaw, bin_index, opening = check_action(
+            action, self.action_space, self.commands
+        )
         self._steps += 1
         warnings_before = sum(w.number for w in self.data.warning)
         snapshot = self._snapshot() if self.config.undo_blowups else None
@@ -548,39 +503,6 @@ class SortingEnv(gym.Env):
             raise ResetNeededError(f"{why}: call reset() before {method}()")
 
     # -- internals ---------------------------------------------------------------------------
-    def _validate(self, action) -> tuple[int, np.ndarray, float, int, float | None]:
-        if not isinstance(action, dict) or set(action) != set(self.action_space.spaces):
-            got = sorted(action) if isinstance(action, dict) else type(action).__name__
-            raise InvalidActionError(
-                f"an action is a dict with keys {sorted(self.action_space.spaces)}; got {got}"
-            )
-        for key, space in self.action_space.spaces.items():
-            value = action[key]
-            if isinstance(space, spaces.Discrete):
-                ok = (
-                    np.ndim(value) == 0
-                    and float(value) == int(value)
-                    and space.contains(np.int64(value))
-                )
-                if not ok:
-                    names = CATEGORIES if key == "bin" else self.commands
-                    valid = ", ".join(f"{i}={n}" for i, n in enumerate(names))
-                    raise InvalidActionError(f"action[{key!r}] = {value!r}; valid: {valid}")
-            else:
-                arr = np.asarray(value, dtype=np.float32).reshape(-1)
-                if arr.shape != space.shape or not space.contains(arr):
-                    raise InvalidActionError(
-                        f"action[{key!r}] = {value!r} is outside {space} (shape "
-                        f"{space.shape}, low {space.low.tolist()}, high {space.high.tolist()})"
-                    )
-        return (
-            int(action["command"]),
-            np.asarray(action["position"], float).reshape(3),
-            float(np.asarray(action["yaw"]).reshape(-1)[0]),
-            int(action["bin"]),
-            float(np.asarray(action["opening"]).reshape(-1)[0]) if "opening" in action else None,
-        )
-
     def _execute(
         self,
         command: int,
@@ -650,41 +572,6 @@ class SortingEnv(gym.Env):
         self.skills.holding, self.skills.grasp_height, self.skills.grasp_yaw = skills
         self._blew_up = False
 
-    def _settle_gently(self, longest: float) -> None:
-        """Let the objects come to rest with their motion damped, before the ``settle_time``
-        every reset holds (a scene with :attr:`~ipbench.envs.layout.SceneConfig.gentle_settle`:
-        the pile, ``Sorting-v2`` only; ``longest``: that value, s).
-
-        Each object's velocities decay with time constant :data:`_GENTLE_TAU` (s) on top of
-        the physics until no object moves faster than :data:`_REST_SPEED` (m/s) and
-        :data:`_REST_SPIN` (rad/s); then the physics runs alone, until the objects stay at
-        rest for :data:`_RELEASE_CALM` checks in a row (the end), or one moves faster than
-        :data:`_WAKE_SPEED` (m/s: it topples, or slides off another), which damps them all
-        again; at most ``longest`` s of physics in all. The objects laid on a pile thus come
-        down onto the others as if put there by hand, instead of falling, bouncing and rolling
-        off the table (MuJoCo's contacts have no rolling resistance: a bowl or bottle set
-        rolling by a fall rolls on), and rest where the physics alone keeps them
-        (``tests/test_pile_scene.py``).
-        """
-        m, d = self.model, self.data
-        bodies = self.world.object_bodies
-        dofs = np.concatenate([m.jnt_dofadr[m.body_jntadr[b]] + np.arange(6) for b in bodies])
-        mass = np.repeat(m.body_mass[bodies][:, None], 3, axis=1)  # (n, 3), kg
-        # per dof: the mass for the translations, the principal moments (kg m^2) for rotations
-        damping = np.hstack([mass, m.body_inertia[bodies]]).ravel() / _GENTLE_TAU
-        undamped = m.dof_damping[dofs].copy()
-        damped, still, end = True, 0, d.time + longest
-        try:
-            while d.time < end and still < _RELEASE_CALM:
-                m.dof_damping[dofs] = undamped + damping if damped else undamped
-                self.robot.hold(_REST_CHECK)
-                v = np.abs(d.qvel[dofs]).reshape(-1, 6)
-                rest = v[:, :3].max() < _REST_SPEED and v[:, 3:].max() < _REST_SPIN
-                still = still + 1 if rest and not damped else 0
-                damped = (damped and not rest) or v[:, :3].max() > _WAKE_SPEED
-        finally:
-            m.dof_damping[dofs] = undamped
-
     def _place_arms_at_start(self) -> None:
         """Camera arm looking at the table, gripper arm parked clear of the camera's view."""
         skills = self.skills
@@ -726,16 +613,8 @@ class SortingEnv(gym.Env):
         if wrist:
             obs["wrist_K"], obs["wrist_pose"] = k_wrist.K, camera_pose(m, d, WRIST_CAMERA)
         if "head" in self.config.cameras:
-            hh, hw = self.config.head_size
-            for side in HEAD_SIDES:
-                cam = f"head_{side}_camera"
-                obs[f"head_{side}"] = r.render_rgb(d, cam, hw, hh)
-                obs[f"head_{side}_K"] = intrinsics(m, cam, hw, hh).K
-                obs[f"head_{side}_pose"] = camera_pose(m, d, cam)
-                if self._knowledge is not None:  # the true lens
-                    lens = self._errors.distortion[cam]
-                    image, K = obs[f"head_{side}"], obs[f"head_{side}_K"]  # noqa: N806
-                    obs[f"head_{side}"] = distort_image(image, K, lens)
+            lenses = None if self._knowledge is None else self._errors.distortion  # true lenses
+            obs |= observe_head(r, m, d, self.config.head_size, lenses=lenses)[0]
         if self._knowledge is not None:  # what the robot believes, at its encoder readings
             hh, hw = self.config.head_size
             sizes = {c: (WRIST_SIZE[1], WRIST_SIZE[0]) if c == "wrist" else (hw, hh)

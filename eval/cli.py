@@ -26,7 +26,15 @@ from ipbench.eval.calibration.cli import (
     main_calibrate,
     main_eval_calibration,
 )
-from ipbench.eval.cli_options import add_json_option
+from ipbench.eval.cli_options import (
+    add_json_option,
+    parse_names,
+    parse_seeds,
+    parse_thresholds,
+    print_figures,
+    run_to_summary,
+    writable,
+)
 from ipbench.eval.exploration.cli import (
     add_bench_exploration,
     add_eval_exploration,
@@ -42,7 +50,7 @@ def _valid_names() -> dict[str, tuple[str, ...]]:
     """The names help texts list, by placeholder (imported when help is shown: slow)."""
     from ipbench.envs import ENV_IDS
     from ipbench.envs.exploration_scene import LEVELS
-    from ipbench.envs.layout import SCENES
+    from ipbench.envs.sorting_scenes import SCENES
     from ipbench.eval.sorting.evaluate import BACKENDS
     from ipbench.perception.features2d import FEATURE_TYPES
     from ipbench.policies import FUSIONS, POLICIES
@@ -354,67 +362,6 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
-def _seeds(text: str) -> tuple[int, ...]:
-    try:
-        if ":" in text:
-            a, b = (int(v) for v in text.split(":"))
-            seeds = tuple(range(a, b))
-        else:
-            seeds = tuple(int(v) for v in text.split(",") if v.strip())
-    except ValueError:
-        seeds = ()
-    if not seeds or min(seeds) < 0:
-        raise SystemExit(
-            f"ipbench: bad --seeds {text!r}; give A:B with 0 <= A < B (e.g. 0:30) or a "
-            "comma-separated list of non-negative integers"
-        )
-    return seeds
-
-
-def _thresholds(text: str | None) -> tuple[float, ...]:
-    """``--thresholds`` as floats in [0, 1] (None: none given)."""
-    if text is None:
-        return ()
-    try:
-        values = tuple(float(v) for v in text.split(",") if v.strip())
-    except ValueError:
-        values = ()
-    if not values or not all(0.0 <= v <= 1.0 for v in values) or len(set(values)) < len(values):
-        raise SystemExit(
-            f"ipbench: bad --thresholds {text!r}; give distinct comma-separated confidences in "
-            "[0, 1], e.g. 0.5,0.8,1.0"
-        )
-    return values
-
-
-def _writable(path: Path, option: str) -> None:
-    """Create folder ``path`` (given as ``option``) or exit with a one-line reason and fix."""
-    from ipbench.eval.files import ensure_writable
-
-    path = Path(path)
-    blocker = next((p for p in (path, *path.parents) if p.exists() and not p.is_dir()), None)
-    if blocker is not None:
-        what = "it is a file" if blocker == path else f"{blocker} is a file"
-        raise SystemExit(
-            f"ipbench: cannot write to {option} {path}: {what}, not a folder; pass a folder "
-            "(created if missing), or move the file away"
-        )
-    try:
-        ensure_writable(path)
-    except OSError as err:
-        raise SystemExit(
-            f"ipbench: cannot write to {option} {path}: {err.strerror or err}; pass a folder "
-            "you can write to"
-        ) from err
-
-
-def _print_figures(figures: dict, json_arg: str | None, report) -> None:
-    path = None if json_arg in (None, "-") else Path(json_arg)
-    print(report(figures, path))
-    if json_arg == "-":
-        print(json.dumps(figures))
-
-
 def _classifiers(args) -> dict:
     """``{"classifiers": (...)}`` from ``--classifiers``, checked; ``{}`` without it."""
     from ipbench.eval.perception.evaluate import EVAL_CLASSIFIERS as CLASSIFIERS
@@ -439,16 +386,9 @@ def _classifiers(args) -> dict:
 
 
 def _scenes(text: str) -> tuple[str, ...]:
-    from ipbench.envs.layout import SCENES
+    from ipbench.envs.sorting_scenes import SCENES
 
-    names = tuple(s.strip() for s in text.split(",") if s.strip())
-    bad = [s for s in names if s not in SCENES]
-    if bad or not names:
-        raise SystemExit(
-            f"ipbench: unknown scene(s) {', '.join(bad) or '(none)'}; "
-            f"valid scenes: {', '.join(SCENES)}"
-        )
-    return names
+    return parse_names(text, SCENES, "scene(s)", "valid scenes")
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -465,27 +405,35 @@ def main(argv: list[str] | None = None) -> int:
         from ipbench.eval.sorting.demo import run_demo
 
         scenes = _scenes(args.scenes)
-        _writable(args.out, "--out")
-        summary = run_demo(args.out, scenes, seed=args.seed, video=not args.no_video)
-        for scene, s in summary.items():
-            print(
+        writable(args.out, "--out")
+        return run_to_summary(
+            lambda: run_demo(args.out, scenes, seed=args.seed, video=not args.no_video),
+            lambda summary: (
                 f"{scene}: {s['correct']}/{s['objects']} objects in the right bin, "
                 f"{s['steps']} steps, {s['wall_time_s']} s"
-            )
-        print(f"results written to {args.out.resolve()}")
-        return 0
+                for scene, s in summary.items()
+            ),
+            f"results written to {args.out.resolve()}",
+        )
     if args.command == "eval" and args.target == "perception":
         from ipbench.eval.perception.evaluate import PerceptionEvalConfig, run_perception_eval
 
         config = PerceptionEvalConfig.for_env(_env_id(args.env), **_classifiers(args))
-        _writable(args.out, "--out")
-        _writable(args.cache, "--cache")
-        metrics = run_perception_eval(args.out, args.cache, config)
-        for split, by_name in metrics["splits"].items():
-            row = ", ".join(f"{n} {m['accuracy']:.3f}" for n, m in by_name.items() if m.get("n", 0))
-            print(f"5-class accuracy, {split}: {row or 'no views'}")
-        print(f"report written to {(args.out / 'perception.md').resolve()}")
-        return 0
+        writable(args.out, "--out")
+        writable(args.cache, "--cache")
+
+        def perception_rows(metrics):
+            for split, by_name in metrics["splits"].items():
+                row = ", ".join(
+                    f"{n} {m['accuracy']:.3f}" for n, m in by_name.items() if m.get("n", 0)
+                )
+                yield f"5-class accuracy, {split}: {row or 'no views'}"
+
+        return run_to_summary(
+            lambda: run_perception_eval(args.out, args.cache, config),
+            perception_rows,
+            f"report written to {(args.out / 'perception.md').resolve()}",
+        )
     if args.command == "eval" and args.target == "sorting":
         from ipbench.eval.perception.evaluate import PerceptionEvalConfig
         from ipbench.eval.sorting.evaluate import (
@@ -495,14 +443,14 @@ def main(argv: list[str] | None = None) -> int:
             run_sorting_eval,
         )
 
-        try:
+        def run():
             policies = tuple(p.strip() for p in args.policies.split(",") if p.strip())
             config = SortingEvalConfig(
                 perception=PerceptionEvalConfig.for_env(_env_id(args.env)),
                 scenes=_scenes(args.scenes),
-                policies=expand_thresholds(policies, _thresholds(args.thresholds)),
+                policies=expand_thresholds(policies, parse_thresholds(args.thresholds)),
                 threshold=args.threshold,
-                seeds=_seeds(args.seeds),
+                seeds=parse_seeds(args.seeds),
                 workers=args.workers,
                 backend=args.backend,
                 ray_address=args.ray_address,
@@ -512,21 +460,25 @@ def main(argv: list[str] | None = None) -> int:
                 calibration=args.calibration,
                 robot_seed=args.robot_seed,
             )
-            _writable(args.out, "--out")
-            _writable(args.cache, "--cache")
-            summary = run_sorting_eval(args.out, args.cache, config)
-        except SortingEvalError as err:
-            raise SystemExit(f"ipbench: {err}") from err
-        for scene, by_policy in summary.items():
-            row = ", ".join(
-                f"{p} {m['accuracy_mean']:.0%} [{m['ci_low']:.0%}, {m['ci_high']:.0%}]"
-                for p, m in by_policy.items()
-            )
-            print(f"{scene}: {row}")
-        print(f"report written to {(args.out / 'sorting.md').resolve()}")
-        return 0
+            writable(args.out, "--out")
+            writable(args.cache, "--cache")
+            return run_sorting_eval(args.out, args.cache, config)
+
+        return run_to_summary(
+            run,
+            lambda summary: (
+                f"{scene}: "
+                + ", ".join(
+                    f"{p} {m['accuracy_mean']:.0%} [{m['ci_low']:.0%}, {m['ci_high']:.0%}]"
+                    for p, m in by_policy.items()
+                )
+                for scene, by_policy in summary.items()
+            ),
+            f"report written to {(args.out / 'sorting.md').resolve()}",
+            (SortingEvalError,),
+        )
     if args.command == "eval" and args.target == "calibration":
-        return main_eval_calibration(args, _writable)
+        return main_eval_calibration(args)
     if args.command == "eval" and args.target == "compare":
         from ipbench.eval.sorting.compare import (
             CompareError,
@@ -544,12 +496,12 @@ def main(argv: list[str] | None = None) -> int:
             args.json.write_text(json.dumps(as_json(rows), indent=1))
         return 0
     if args.command in ("eval", "bench") and args.target == "exploration":
-        return main_exploration(args, _seeds, _writable, _print_figures)
+        return main_exploration(args)
     if args.command == "figures":
         from ipbench.eval.capture.figures import depth_figure, family_gallery
 
         env_id = _env_id(args.env)
-        _writable(args.out, "--out")
+        writable(args.out, "--out")
         version = env_id.rsplit("-", 1)[-1]
         for path in (
             family_gallery(args.out / f"objects_{version}.png", env_id),
@@ -565,23 +517,23 @@ def main(argv: list[str] | None = None) -> int:
         policies = tuple(p.strip() for p in args.policies.split(",") if p.strip())
         try:
             check_bench_eval(policies, args.episodes)
-            _writable(args.cache, "--cache")
+            writable(args.cache, "--cache")
             figures = bench_eval(args.cache, policies, args.episodes)
         except SortingEvalError as err:
             raise SystemExit(f"ipbench: {err}") from err
-        _print_figures(figures, args.json, report)
+        print_figures(figures, args.json, report)
         return 0
     if args.command == "bench" and args.target == "sim":
         from ipbench.eval.bench.sim import bench_sim, report
 
         _scenes(args.scene)
-        _print_figures(bench_sim(args.scene, env_id=_env_id(args.env)), args.json, report)
+        print_figures(bench_sim(args.scene, env_id=_env_id(args.env)), args.json, report)
         return 0
     if args.command == "bench" and args.target == "perception":
         from ipbench.eval.bench.perception import bench_perception
         from ipbench.eval.bench.sim import report
 
-        _print_figures(bench_perception(), args.json, report)
+        print_figures(bench_perception(), args.json, report)
         return 0
     return 2
 

@@ -38,6 +38,7 @@ __all__ = [
     "open_run",
     "record_episodes",
     "run_episodes",
+    "run_grid",
 ]
 
 BACKENDS: tuple[str, ...] = ("process", "ray")
@@ -197,6 +198,30 @@ def record_episodes(
 
         log.append(records, each=advance)
     log.sort()
+
+
+def run_grid(
+    out: Path,
+    fingerprint: str,
+    info: dict,
+    key: Callable[[dict], Hashable],
+    grid: Iterable[Hashable],
+    make_task: Callable[[Hashable], Any],
+    execute: Callable[[list], Iterable[dict]],
+    describe: Callable[[dict], str],
+    error: type[Exception] = ValueError,
+    progress: bool = True,
+) -> EpisodeLog:
+    """The run skeleton every task family shares: open the run (:func:`open_run`), make a task
+    of every key of ``grid`` not yet in its episode log (``key(record)`` of a finished record
+    equals its grid key), run them (``execute(tasks)`` yields records, e.g. through
+    :func:`run_episodes`) and record them (:func:`record_episodes`). Returns the log; the
+    family writes its report from ``log.records()``."""
+    log = open_run(out, fingerprint, info, key, error)
+    done = log.done()
+    tasks = [make_task(k) for k in grid if k not in done]
+    record_episodes(log, execute(tasks), len(tasks), len(done), describe, progress)
+    return log
 
 
 # -- executors ------------------------------------------------------------------------------------

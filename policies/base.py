@@ -22,7 +22,7 @@ from typing import Protocol, runtime_checkable
 import numpy as np
 
 from ipbench.assets.objects import CATEGORIES
-from ipbench.policies.grasping import FailureMemory, GraspTarget, grasp_target
+from ipbench.policies.grasping.segments import FailureMemory, GraspTarget, grasp_target
 from ipbench.policies.perceiver import Detection, Perceiver
 
 __all__ = ["Decision", "NothingToSort", "Policy", "PolicyError", "SceneSorter", "place_action"]
@@ -164,8 +164,8 @@ class SceneSorter:
 
     def target(self, detection: Detection) -> GraspTarget:
         """Where to grasp ``detection`` (turned after failures there), checked against every
-        other segment of the current view (:func:`~ipbench.policies.grasping.grasp_target`);
-        computed once per view."""
+        other segment of the current view
+        (:func:`~ipbench.policies.grasping.segments.grasp_target`); computed once per view."""
         key = id(detection.segment)
         if key not in self._targets:
             others = [d.points for d in self.detections if d.segment is not detection.segment]

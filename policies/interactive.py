@@ -25,7 +25,7 @@ from ipbench.policies.base import (
     place_action,
 )
 from ipbench.policies.fusion import FUSIONS, fuse
-from ipbench.policies.grasping import GraspTarget, grasp_target
+from ipbench.policies.grasping.segments import GraspTarget, grasp_target
 from ipbench.policies.perceiver import Detection, Perceiver
 
 __all__ = ["INSPECTIONS", "InteractiveConfig", "InteractiveSorter"]

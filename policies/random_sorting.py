@@ -3,7 +3,7 @@
 One-shot perception of the scene, then the objects are removed in random order, each into the
 bin of its predicted class; confidence is not used. An object whose grasp the depth image
 shows to be blocked waits for the free ones of its round (the grasp planning every policy
-shares, :mod:`ipbench.policies.free_grasp`). When every object of that view has had
+shares, :mod:`ipbench.policies.grasping.free`). When every object of that view has had
 its turn and some remain (failed grasps, merged segments), the scene is perceived again — a new
 one-shot view — and the next round starts.
 """

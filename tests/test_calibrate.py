@@ -17,7 +17,7 @@ from ipbench.assets.calibration_target import (  # noqa: E402
     add_target_plate,
 )
 from ipbench.assets.compose import build_workcell_spec  # noqa: E402
-from ipbench.envs.calibration_file import CalibrationFile  # noqa: E402
+from ipbench.envs.cell.calibration_file import CalibrationFile  # noqa: E402
 from ipbench.eval.calibration.calibrate import (  # noqa: E402
     CalibrationCaptureConfig,
     CalibrationRoutineError,
@@ -157,7 +157,7 @@ def test_cameras_may_be_given_as_a_comma_list_and_a_bad_config_object_is_refused
 
 
 def test_a_cell_with_model_errors_is_calibrated_far_closer_than_its_nominal_model():
-    """With the true cell off its nominal model (envs.model_errors: camera mounts, PTU bases,
+    """With the true cell off its nominal model (envs.cell.model_errors: camera mounts, PTU bases,
     lenses), the calibrated hand-eye X is much nearer the truth than the nominal model's."""
     config = CalibrationCaptureConfig(cameras=("wrist",), poses_per_camera=8, seed=3, robot_seed=1)
     capture = capture_views(config)

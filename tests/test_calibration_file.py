@@ -8,7 +8,7 @@ import cv2
 import numpy as np
 import pytest
 
-from ipbench.envs.calibration_file import (
+from ipbench.envs.cell.calibration_file import (
     FORMAT_VERSION,
     CalibrationFile,
     CalibrationFileError,
@@ -255,7 +255,7 @@ def test_opencv_shaped_distortion_is_flattened_and_arrays_are_read_only():
 def test_the_files_vocabulary_is_the_routines():
     """The file (read by the envs, which may not import perception) names the methods and
     set-ups as ipbench.perception.calibration.hand_eye does."""
-    from ipbench.envs import calibration_file as f
+    from ipbench.envs.cell import calibration_file as f
     from ipbench.perception.calibration import hand_eye as h
 
     assert f.METHODS == h.HAND_EYE_METHODS + h.ROBOT_WORLD_METHODS

@@ -2,7 +2,7 @@
 
 import pytest
 
-from ipbench.envs.calibration_file import CalibrationFile
+from ipbench.envs.cell.calibration_file import CalibrationFile
 from ipbench.eval.cli import main
 
 
@@ -36,7 +36,7 @@ def test_the_default_calibration_is_accepted_by_an_env_of_the_default_cell(tmp_p
     import gymnasium as gym
 
     import ipbench.envs  # noqa: F401
-    from ipbench.envs.extrinsics import ExtrinsicsError
+    from ipbench.envs.cell.extrinsics import ExtrinsicsError
 
     out = tmp_path / "c.json"
     assert main(["calibrate", "--out", str(out), "--cameras", "wrist", "--poses", "5"]) == 0

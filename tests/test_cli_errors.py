@@ -6,7 +6,7 @@ from __future__ import annotations
 import pytest
 
 from ipbench.envs import ENV_IDS
-from ipbench.envs.layout import SCENES
+from ipbench.envs.sorting_scenes import SCENES
 from ipbench.eval.cli import main
 from ipbench.policies import POLICIES
 

@@ -75,7 +75,7 @@ def _room(path: Path) -> str:
 def _eval_offences(path: Path) -> list[str]:
     room, rooms = _room(path), set(EVAL_ROOMS)
     out = []
-    for name in _imports(path):
+    for name in sorted(_imports(path)):
         parts = name.split(".")
         if (
             parts[:2] == ["ipbench", "envs"]
@@ -112,6 +112,25 @@ def test_the_eval_room_check_sees_a_violation(tmp_path):
         ]
     finally:
         ROOT = saved
+
+
+# envs sub-package -> the ipbench modules (prefixes) it may import: the sensor models stand
+# alone (pixels from an image and a model); the cell's errors need the sensors' lenses, the
+# pan-tilt units and the assets' mounting frames
+ENVS_ROOMS = {
+    "sensors": ("ipbench.envs.sensors",),
+    "cell": ("ipbench.assets", "ipbench.envs.cell", "ipbench.envs.sensors", "ipbench.envs.ptu"),
+}
+
+
+@pytest.mark.parametrize("room", sorted(ENVS_ROOMS))
+def test_envs_sub_packages_import_only_what_they_build_on(room):
+    offending = []
+    for path in sorted((ROOT / "envs" / room).rglob("*.py")):
+        for name in sorted(_imports(path)):
+            if name.startswith("ipbench") and not name.startswith(ENVS_ROOMS[room]):
+                offending.append(f"{path.relative_to(ROOT)} imports {name}")
+    assert not offending, "\n".join(offending)
 
 
 def test_the_check_sees_a_violation(tmp_path):

@@ -5,7 +5,7 @@ import math
 import numpy as np
 import pytest
 
-from ipbench.envs.depth_noise import (
+from ipbench.envs.sensors.depth_noise import (
     DepthNoiseConfig,
     DepthNoiseModel,
     SensorError,
@@ -207,7 +207,7 @@ def test_invalid_input_and_config():
 
 @pytest.mark.parametrize("bit_generator", [np.random.PCG64, np.random.SFC64, np.random.MT19937])
 def test_random_words_are_the_generators_integers(bit_generator):
-    from ipbench.envs.depth_noise import _random_words
+    from ipbench.envs.sensors.depth_noise import _random_words
 
     a, b = np.random.Generator(bit_generator(7)), np.random.Generator(bit_generator(7))
     words = _random_words(a, 999)

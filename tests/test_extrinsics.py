@@ -12,18 +12,18 @@ from gymnasium.utils.env_checker import check_env
 
 import ipbench.envs  # noqa: F401  (registers the ids)
 from ipbench.assets.compose import build_workcell_spec
-from ipbench.envs.exploration import ExplorationEnv
-from ipbench.envs.exploration_scene import build_model, sample_scene
-from ipbench.envs.extrinsics import (
+from ipbench.envs.cell.extrinsics import (
     EXTRINSICS,
     CameraKnowledge,
     ExtrinsicsError,
     _scaled_K,
     distort_labels,
 )
-from ipbench.envs.lens_distortion import D5100_35MM
-from ipbench.envs.model_errors import ModelErrors, sample_model_errors
+from ipbench.envs.cell.model_errors import ModelErrors, sample_model_errors
+from ipbench.envs.exploration import ExplorationEnv
+from ipbench.envs.exploration_scene import build_model, sample_scene
 from ipbench.envs.sensors import camera_pose, intrinsics
+from ipbench.envs.sensors.lens_distortion import D5100_35MM
 from ipbench.eval.calibration.calibrate import CalibrationCaptureConfig, calibrate_cell
 
 ROBOT_SEED = 3
@@ -247,7 +247,7 @@ def test_the_true_xtion_depth_is_shifted_by_the_robots_registration_error():
     """Under ``nominal``/``calibrated`` the wrist depth image is the registered depth moved by
     the robot's ``depth_registration_px`` (rounded), uncovered pixels missing; the RGB image
     does not move; ``true`` keeps no shift."""
-    from ipbench.envs.depth_noise import DepthNoiseConfig
+    from ipbench.envs.sensors.depth_noise import DepthNoiseConfig
 
     seed = 0  # registration (2.50, -1.79) px: (3, -2) whole pixels
     du, dv = sample_model_errors(seed).depth_registration_px

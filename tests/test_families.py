@@ -280,7 +280,7 @@ def test_resting_poses_settle(inst):
 # --- graspable -----------------------------------------------------------------------------------
 
 
-# The demo sorter's grasp point (policies/scripted.grasp_point) puts the TCP at top - 45 mm
+# The demo sorter's grasp point (policies/grasping/boxes.grasp_point) puts the TCP at top - 45 mm
 # for short objects (TOP_MARGIN 25 mm plus the skill's grasp_depth 20 mm), not top - 25 mm as
 # it means to: for bowls taller than ~80 mm (noodle bowls) the finger boxes behind the pads
 # meet the flared rim and the pads never touch it. Traced on noodle bowls 16-23: 1 of 8 picked

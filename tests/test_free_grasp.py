@@ -9,8 +9,8 @@ from ipbench.perception.cloud import PerceptionError
 from ipbench.perception.segmentation import make_segment
 from ipbench.perception.split import ObjectEnvelope, fits_one_object, split_merged, split_segment
 from ipbench.policies.envelopes import object_envelopes
-from ipbench.policies.free_grasp import check_grasp, tip_height
-from ipbench.policies.grasping import grasp_target, rim_circle
+from ipbench.policies.grasping.free import check_grasp, tip_height
+from ipbench.policies.grasping.segments import grasp_target, rim_circle
 
 TABLE = 0.72
 UP, OFFSET = np.array([0.0, 0.0, 1.0]), -TABLE  # the table plane z = TABLE

@@ -72,7 +72,7 @@ def presented():
     env = gym.make(V2.env_id, depth_noise=V2.sensor, cameras=EVAL_CAMERAS)
     _, info = env.reset(seed=3, options={"layout": hand_views._layout(inst, "upright", 0.0)})
     quat, size = info["objects"][0]["pose"][3:], inst.size
-    from ipbench.policies.scripted import grasp_point, grasp_yaws, jaw_span
+    from ipbench.policies.grasping.boxes import grasp_point, grasp_yaws, jaw_span
 
     yaw = grasp_yaws(quat, size, round_=False)[0]
     action = {

@@ -7,15 +7,9 @@ import pytest
 
 import ipbench.envs.layout as layout_module
 from ipbench.assets.objects import CATEGORIES
-from ipbench.envs.layout import (
-    SCENES,
-    STANDARD_SCENES,
-    LayoutError,
-    _footprint,
-    _overlaps,
-    sample_layout,
-)
+from ipbench.envs.layout import LayoutError, _footprint, _overlaps, sample_layout
 from ipbench.envs.robot import ik_model
+from ipbench.envs.sorting_scenes import SCENES, STANDARD_SCENES
 from ipbench.envs.world import Places
 
 

@@ -17,10 +17,7 @@ from gymnasium.utils import seeding
 import ipbench.envs.layout as layout_module
 from ipbench.assets.objects import CATEGORIES
 from ipbench.envs.layout import (
-    SCENES,
-    STANDARD_SCENES,
     LayoutError,
-    SceneConfig,
     _footprint,
     _overlaps,
     _pick,
@@ -29,6 +26,7 @@ from ipbench.envs.layout import (
     sample_layout,
 )
 from ipbench.envs.sorting import workcell_places
+from ipbench.envs.sorting_scenes import SCENES, STANDARD_SCENES, SceneConfig
 
 DATA = Path(__file__).parent / "data" / "layout_digests.json"
 PLACES = workcell_places()

@@ -6,8 +6,8 @@ import cv2
 import numpy as np
 import pytest
 
-from ipbench.envs.depth_noise import SensorError
-from ipbench.envs.lens_distortion import (
+from ipbench.envs.sensors.depth_noise import SensorError
+from ipbench.envs.sensors.lens_distortion import (
     D5100_35MM,
     XTION_RGB,
     LensDistortion,

@@ -1,5 +1,5 @@
-"""The true model differs from the nominal one (envs/model_errors.py): exact kinematics of every
-error, the sampler against ERROR_SCALES, the scales against their sources, bad input."""
+"""The true model differs from the nominal one (envs/cell/model_errors.py): exact kinematics of
+every error, the sampler against ERROR_SCALES, the scales against their sources, bad input."""
 
 from __future__ import annotations
 
@@ -12,8 +12,7 @@ import numpy as np
 import pytest
 
 from ipbench.assets.compose import build_workcell_spec
-from ipbench.envs.lens_distortion import D5100_35MM, XTION_RGB, LensDistortion
-from ipbench.envs.model_errors import (
+from ipbench.envs.cell.model_errors import (
     CAMERA_MOUNTS,
     ERROR_SCALES,
     MARKER_TEXT,
@@ -27,6 +26,7 @@ from ipbench.envs.model_errors import (
     sample_model_errors,
 )
 from ipbench.envs.sensors import camera_pose
+from ipbench.envs.sensors.lens_distortion import D5100_35MM, XTION_RGB, LensDistortion
 
 CAMERAS = {"wrist_camera": "right_wrist_camera"} | {
     f"head_{s}_camera": f"head_{s}_camera" for s in ("left", "right")

@@ -265,7 +265,7 @@ def test_split_tests_follow_each_instance_split():
 
 
 def test_v2_dataset_uses_the_v2_objects_and_sensor():
-    from ipbench.envs.depth_noise import STRUCTURED_LIGHT
+    from ipbench.envs.sensors.depth_noise import STRUCTURED_LIGHT
 
     config = DatasetConfig(env_id="ipbench/Sorting-v2", per_category=1)
     assert config.sensor == STRUCTURED_LIGHT and config.catalog == "v2"

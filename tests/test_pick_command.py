@@ -61,7 +61,7 @@ def test_pick_then_place_is_one_place_in_bin_with_a_look_in_between() -> None:
 def _uniform_models():
     from ipbench.assets.objects import CATEGORIES
     from ipbench.envs.sorting import workcell_places
-    from ipbench.eval.repro.digests import _Uniform
+    from ipbench.eval.repro.stages_sim import _Uniform
     from ipbench.perception.features import FPFH_DIM, Codebook
     from ipbench.perception.model import PerceptionModel
     from ipbench.policies import PolicyModels
@@ -111,8 +111,8 @@ def test_a_wide_bowl_is_held_with_the_pads_under_its_rim() -> None:
     ``grasp_depth`` added back), is held every time."""
     from ipbench.assets.objects import instances
     from ipbench.eval.capture.hand_views import _layout
-    from ipbench.policies.grasping import GRASP_DEPTH
-    from ipbench.policies.scripted import TOP_MARGIN
+    from ipbench.policies.grasping.boxes import TOP_MARGIN
+    from ipbench.policies.grasping.free import GRASP_DEPTH
 
     bowl = instances(catalog="v2", family="noodle")[0]
     layout = _layout(bowl, "upright", 0.0)

@@ -18,16 +18,14 @@ from ipbench.envs import UNDER_DEVELOPMENT, V2_IDS, env_config
 from ipbench.envs.layout import (
     PILE_CLEARANCE,
     PILE_MAX_LIFT,
-    SCENES,
-    STANDARD_SCENES,
     LayoutError,
     _footprint,
     _overlaps,
     _top,
     sample_layout,
-    scenes_for,
 )
 from ipbench.envs.sorting import workcell_places
+from ipbench.envs.sorting_scenes import SCENES, STANDARD_SCENES, scenes_for
 
 PLACES = workcell_places()
 AREA = PLACES.spawn_area

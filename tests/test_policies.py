@@ -14,7 +14,8 @@ from ipbench.perception.segmentation import Segment
 from ipbench.policies import POLICIES, PolicyError, make_policy
 from ipbench.policies.base import place_action
 from ipbench.policies.fusion import FusionError, bayes_fusion, fuse, majority_vote
-from ipbench.policies.grasping import (
+from ipbench.policies.grasping.boxes import OPENING_MARGIN, TOP_MARGIN
+from ipbench.policies.grasping.segments import (
     FailureMemory,
     completed_footprint,
     grasp_target,
@@ -22,7 +23,6 @@ from ipbench.policies.grasping import (
 )
 from ipbench.policies.interactive import InteractiveConfig, InteractiveSorter
 from ipbench.policies.perceiver import Detection
-from ipbench.policies.scripted import OPENING_MARGIN, TOP_MARGIN
 
 CLASSES = ("juice_bottle", "milk_carton", "bowl", "mug", "juice_box")
 
@@ -34,11 +34,15 @@ CLASSES = ("juice_bottle", "milk_carton", "bowl", "mug", "juice_box")
         "ipbench.policies.base",
         "ipbench.policies.fusion",
         "ipbench.policies.grasping",
+        "ipbench.policies.grasping.boxes",
+        "ipbench.policies.grasping.free",
+        "ipbench.policies.grasping.segments",
         "ipbench.policies.interactive",
         "ipbench.policies.kinematics",
         "ipbench.policies.oracle",
         "ipbench.policies.perceiver",
         "ipbench.policies.random_sorting",
+        "ipbench.policies.scripted",
         "ipbench.policies.threshold",
     ],
 )

@@ -131,7 +131,7 @@ def test_validation_views_in_the_pool_give_the_evidence_of_a_pool_of_their_own(
     validation pool gathers with the same model."""
     import json
 
-    from ipbench.envs.layout import SCENES
+    from ipbench.envs.sorting_scenes import SCENES
     from ipbench.eval.sorting import evaluate as sorting
 
     monkeypatch.setattr(sorting, "SCENES", {"uncluttered": SCENES["uncluttered"]})

@@ -5,7 +5,6 @@ import mujoco
 import numpy as np
 import pytest
 
-from ipbench.envs.depth_noise import DepthNoiseConfig, DepthNoiseModel
 from ipbench.envs.sensors import (
     RgbdCamera,
     SensorError,
@@ -14,6 +13,7 @@ from ipbench.envs.sensors import (
     intrinsics,
     specular_geoms,
 )
+from ipbench.envs.sensors.depth_noise import DepthNoiseConfig, DepthNoiseModel
 
 
 def look_at(pos, target):

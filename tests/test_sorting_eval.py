@@ -14,7 +14,7 @@ from small_models import small_models
 
 import ipbench.envs  # noqa: F401
 import ipbench.eval.sorting.evaluate as sorting
-from ipbench.envs.layout import SCENES, STANDARD_SCENES
+from ipbench.envs.sorting_scenes import SCENES, STANDARD_SCENES
 from ipbench.eval.capture.dataset import DATASET_VERSION
 from ipbench.eval.sorting.evaluate import (
     SortingEvalConfig,
@@ -195,7 +195,7 @@ def test_an_unwritable_output_folder_is_reported(tmp_path, prepared) -> None:
 
 
 def test_threshold_evidence_is_every_labelled_segment_of_the_validation_views(models, monkeypatch):
-    from ipbench.envs.layout import SCENES
+    from ipbench.envs.sorting_scenes import SCENES
 
     monkeypatch.setattr(sorting, "SCENES", {"uncluttered": SCENES["uncluttered"]})
     config = replace(FAST, validation_seeds=(1000,))
@@ -263,12 +263,14 @@ def test_validation_evidence_is_in_task_order_whatever_order_workers_finish(monk
 def test_runs_and_thresholds_of_other_policy_code_are_never_reused(monkeypatch):
     """The policy code's version is in the run fingerprint (a folder of other policy code is
     refused, not resumed) and in the cached threshold evidence's key (chosen again)."""
+    import ipbench.eval.sorting.config as sorting_config
     import ipbench.eval.sorting.evaluate as sorting
 
     config = sorting.SortingEvalConfig()
     model = type("Model", (), {"key": "m"})()
     run, evidence = config.fingerprint("k"), sorting._validation_key(model, config)
     monkeypatch.setattr(sorting, "POLICY_VERSION", sorting.POLICY_VERSION + 1)
+    monkeypatch.setattr(sorting_config, "POLICY_VERSION", sorting.POLICY_VERSION)
     assert config.fingerprint("k") != run
     assert sorting._validation_key(model, config) != evidence
 

@@ -10,9 +10,10 @@ import pytest
 import ipbench.envs
 from ipbench.assets.objects import CATEGORIES, FAMILIES
 from ipbench.envs import UNDER_DEVELOPMENT, V2_IDS, EnvIdError, env_config
-from ipbench.envs.depth_noise import STRUCTURED_LIGHT, DepthNoiseConfig
-from ipbench.envs.layout import SCENES, LayoutError, sample_layout
+from ipbench.envs.layout import LayoutError, sample_layout
+from ipbench.envs.sensors.depth_noise import STRUCTURED_LIGHT, DepthNoiseConfig
 from ipbench.envs.sorting import workcell_places
+from ipbench.envs.sorting_scenes import SCENES
 
 
 def _layout(scene: str, seed: int, catalog: str = "v2"):

@@ -16,7 +16,8 @@ import mujoco
 import numpy as np
 import pytest
 
-from ipbench.envs.depth_noise import (
+from ipbench.envs.sensors import SensorRenderer, intrinsics
+from ipbench.envs.sensors.depth_noise import (
     DEFAULT_CONFIG,
     SENSOR_EFFECTS,
     STRUCTURED_LIGHT,
@@ -26,8 +27,7 @@ from ipbench.envs.depth_noise import (
     UnitError,
     without_effect,
 )
-from ipbench.envs.sensors import SensorRenderer, intrinsics
-from ipbench.envs.structured_light import projector_lit, projector_visible
+from ipbench.envs.sensors.structured_light import projector_lit, projector_visible
 from ipbench.eval.repro.digests import synthetic_depth_images
 
 H, W, F, B = 480, 640, 570.0, 0.075

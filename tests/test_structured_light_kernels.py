@@ -10,14 +10,14 @@ import cv2
 import numpy as np
 import pytest
 
-from ipbench.envs.depth_noise import (
+from ipbench.envs.sensors.depth_noise import (
     STRUCTURED_LIGHT,
     DepthNoiseConfig,
     DepthNoiseModel,
     _random_bytes,
     _random_words,
 )
-from ipbench.envs.structured_light import (
+from ipbench.envs.sensors.structured_light import (
     BlockMatcher,
     UnitError,
     apply_unit,

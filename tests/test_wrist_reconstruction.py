@@ -7,7 +7,7 @@ import dataclasses
 import numpy as np
 import pytest
 
-from ipbench.envs.depth_noise import STRUCTURED_LIGHT, without_effect
+from ipbench.envs.sensors.depth_noise import STRUCTURED_LIGHT, without_effect
 from ipbench.eval.calibration.calibrate import (
     CalibrationCaptureConfig,
     calibrate_capture,

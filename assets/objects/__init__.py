@@ -11,12 +11,13 @@ others instances 0-5 are *train* and 6-7 *similar*.
 >>> pose = resting_poses(inst)[0]  # "upright"
 >>> body = add_object(spec, inst, "obj0", pos=(x, y, table_z + pose.height), quat=pose.quat)
 
-Modules: :mod:`.catalog` (instances, split rule), :mod:`.params` (category dimensions and
-their real-world ranges), :mod:`.meshes` (numpy mesh builders), :mod:`.geometry` (visual
-meshes, collision primitives, inertia), :mod:`.poses` (resting poses), :mod:`.builder`
-(:func:`add_object`); v2: :mod:`.families` (families, sources, split rule),
-:mod:`.family_shapes`, :mod:`.family_samplers`, :mod:`.uv_meshes`, :mod:`.family_geometry`
-(UV-mapped, textured meshes).
+Modules: :mod:`.catalog` (instances, split rule), :mod:`.instance` (:class:`ObjectInstance`),
+:mod:`.params` (category dimensions and their real-world ranges), :mod:`.meshes` (numpy mesh
+builders), :mod:`.primitives` (visual parts, collision primitives), :mod:`.v1_geometry` (v1
+meshes and collision), :mod:`.geometry` (an instance's parts and inertia), :mod:`.poses`
+(resting poses), :mod:`.builder` (:func:`add_object`); v2: :mod:`.families` (families,
+sources, split rule), :mod:`.family_shapes`, :mod:`.family_samplers`, :mod:`.uv_meshes`,
+:mod:`.family_geometry` (UV-mapped, textured meshes), :mod:`.textures`.
 """
 
 from ipbench.assets.objects.builder import (
@@ -32,12 +33,12 @@ from ipbench.assets.objects.catalog import (
     INSTANCES_PER_CATEGORY,
     KNOWN_INSTANCES,
     ObjectCatalogError,
-    ObjectInstance,
     find_instance,
     get_instance,
     instances,
 )
 from ipbench.assets.objects.families import FAMILIES, SPLITS
+from ipbench.assets.objects.instance import ObjectInstance
 from ipbench.assets.objects.poses import RestingPose, resting_poses
 
 __all__ = [

@@ -21,8 +21,9 @@ from collections.abc import Sequence
 import mujoco
 import numpy as np
 
-from ipbench.assets.objects.catalog import ObjectCatalogError, ObjectInstance
+from ipbench.assets.objects.catalog import ObjectCatalogError
 from ipbench.assets.objects.geometry import object_geometry
+from ipbench.assets.objects.instance import ObjectInstance
 
 __all__ = [
     "add_object",

@@ -22,7 +22,7 @@ handle points to +x, the juice box's straw is on its +y face, the carton's ridge
 from __future__ import annotations
 
 import hashlib
-from dataclasses import dataclass, fields
+from dataclasses import fields
 from functools import cache
 
 import numpy as np
@@ -34,7 +34,9 @@ from ipbench.assets.objects.families import (
     V1_FAMILY,
     family_split,
 )
+from ipbench.assets.objects.family_geometry import visual_bounds
 from ipbench.assets.objects.family_samplers import sample_family
+from ipbench.assets.objects.instance import ObjectInstance
 from ipbench.assets.objects.params import (
     BottleShape,
     BowlShape,
@@ -51,7 +53,6 @@ __all__ = [
     "INSTANCES_PER_CATEGORY",
     "KNOWN_INSTANCES",
     "ObjectCatalogError",
-    "ObjectInstance",
     "get_instance",
     "instances",
     "find_instance",
@@ -72,50 +73,6 @@ KNOWN_INSTANCES: int = 8
 
 class ObjectCatalogError(ValueError):
     """Root exception of :mod:`ipbench.assets.objects` (bad category, index, name...)."""
-
-
-@dataclass(frozen=True)
-class ObjectInstance:
-    """One procedural object.
-
-    Attributes
-    ----------
-    category : one of :data:`CATEGORIES`.
-    index : 0 .. INSTANCES_PER_CATEGORY - 1.
-    name : ``f"{category}_{index:02d}"``.
-    known : ``index < KNOWN_INSTANCES``.
-    mass : total mass, kg.
-    size : (3,) extents (x, y, z) of the axis-aligned bounding box of the visual geometry in
-        the object frame, m.
-    center : (3,) centre of that bounding box in the object frame, m (``(0, 0, size_z / 2)``
-        except for the mug, whose handle is on +x, and the juice box, whose straw is on +y).
-    rgba : (4,) main colour (juice tint, carton white, glaze, box print).
-    accent_rgba : (4,) second colour (bottle cap and label, carton band, inside glaze of
-        bowls and mugs, juice-box straw).
-    specular : glazed, shiny surface (depth sensors lose depth on it). In the model such
-        geoms get a material with ``specular >= SPECULAR_THRESHOLD`` (0.5), the others < 0.3.
-    shape : the category's dimensions (:mod:`ipbench.assets.objects.params`,
-        :mod:`ipbench.assets.objects.family_shapes`), m.
-    family : its shape family, a member of ``FAMILIES[category]``.
-    split : ``"train"``, ``"similar"`` (unseen instance of a trained family) or ``"novel"``
-        (instance of a family held out of training).
-    catalog : ``"v1"`` or ``"v2"``; v2 instances carry UV-textured visual meshes.
-    """
-
-    category: str
-    index: int
-    name: str
-    known: bool
-    mass: float
-    size: tuple[float, float, float]
-    center: tuple[float, float, float]
-    rgba: tuple[float, float, float, float]
-    accent_rgba: tuple[float, float, float, float]
-    specular: bool
-    shape: Shape
-    family: str
-    split: str
-    catalog: str
 
 
 def _seed(category: str, index: int) -> int:
@@ -221,8 +178,6 @@ def _seed_v2(category: str, family: str, index: int) -> int:
 
 @cache
 def _make_v2(category: str, index: int) -> ObjectInstance:
-    from ipbench.assets.objects.family_geometry import visual_bounds  # imports this module
-
     family, k = FAMILIES[category][index // INSTANCES_PER_FAMILY], index % INSTANCES_PER_FAMILY
     rng = np.random.default_rng(_seed_v2(category, family, index))
     sample = sample_family(category, family, k, rng)

@@ -16,17 +16,19 @@ import hashlib
 
 import numpy as np
 
-from ipbench.assets.objects import geometry as g
 from ipbench.assets.objects import meshes
+from ipbench.assets.objects import primitives as prim
 from ipbench.assets.objects import uv_meshes as uvm
-from ipbench.assets.objects.catalog import ObjectInstance
+from ipbench.assets.objects import v1_geometry as v1
 from ipbench.assets.objects.family_shapes import (
     BrikShape,
     FootedBowlShape,
     ProfileMugShape,
     SquareBottleShape,
 )
+from ipbench.assets.objects.instance import ObjectInstance
 from ipbench.assets.objects.params import BottleShape, BowlShape, CartonShape
+from ipbench.assets.objects.textures import make_texture
 
 __all__ = ["TEXTURE_SIZES", "family_parts", "visual_bounds"]
 
@@ -102,7 +104,7 @@ def _square_bottle(s: SquareBottleShape):
     pts += [np.column_stack([s.cap_radius * uvm.circle(1.0, 12), np.full(12, z)])
             for z in (s.neck_bottom, s.height)]  # fmt: skip
     hull = meshes.convex_polyhedron(np.vstack(pts))
-    return parts, (g._mesh_prim(hull),)
+    return parts, (prim.mesh_prim(hull),)
 
 
 def _carton(s: CartonShape):
@@ -124,7 +126,7 @@ def _carton(s: CartonShape):
         bottom, (rv, rf[normal_z > -1e-12]), meshes.convex_polyhedron(np.array(fin))
     )
     parts = [("sides", sides, "carton_print"), ("ends", (*ends, None), None)]
-    return parts, g._carton(s, _Dummy)[1]
+    return parts, v1._carton(s, _Dummy)[1]
 
 
 class _Dummy:
@@ -148,7 +150,7 @@ def _bowl(s: BowlShape):
         ("outer", uvm.lathe_uv([(0, 0), (s.foot_radius, 0), *outer], _SEG), "glaze"),
         ("inner", (*meshes.lathe(inner, _SEG), None), None),
     ]
-    return parts, g._bowl(s, _Dummy)[1]
+    return parts, v1._bowl(s, _Dummy)[1]
 
 
 def _footed_bowl(s: FootedBowlShape):
@@ -161,10 +163,10 @@ def _footed_bowl(s: FootedBowlShape):
     ]
     bowl = BowlShape(s.rim_radius, s.bowl_radius, hb, s.wall, s.bottom)
     lifted = [
-        g.Primitive(p.kind, p.pos + [0.0, 0.0, fh], p.rot, p.size, p.mesh, p.density)
-        for p in g._bowl(bowl, _Dummy)[1]
+        prim.Primitive(p.kind, p.pos + [0.0, 0.0, fh], p.rot, p.size, p.mesh, p.density)
+        for p in v1._bowl(bowl, _Dummy)[1]
     ]
-    foot = g._segment("cylinder", (0, 0, 0), (0, 0, fh), s.foot_radius)
+    foot = prim.segment("cylinder", (0, 0, 0), (0, 0, fh), s.foot_radius)
     return parts, (foot, *lifted)
 
 
@@ -173,14 +175,14 @@ def _plates(p0, p1, t: float, phase: float) -> list:
     (r0, z0), (r1, z1) = p0, p1
     beta = np.arctan2(r1 - r0, z1 - z0)
     c, sn = np.cos(beta), np.sin(beta)
-    n = g.RING_SEGMENTS
+    n = v1.RING_SEGMENTS
     half = (max(r0, r1) * np.tan(np.pi / n), 0.5 * np.hypot(r1 - r0, z1 - z0), t / 2)
     centre = (0.5 * (r0 + r1) - 0.5 * t * c, 0.5 * (z0 + z1) + 0.5 * t * sn)
     local = np.array([[0.0, sn, c], [1.0, 0.0, 0.0], [0.0, c, -sn]])
     out = []
     for k in range(n):
-        rz = g._z_rot(2 * np.pi * (k + phase) / n)
-        out.append(g._box(half, rz @ [centre[0], 0.0, centre[1]], rz @ local))
+        rz = prim.z_rot(2 * np.pi * (k + phase) / n)
+        out.append(prim.box(half, rz @ [centre[0], 0.0, centre[1]], rz @ local))
     return out
 
 
@@ -208,10 +210,10 @@ def _mug(s: ProfileMugShape):
     zl = tb / 2
     walls = _plates((_mug_radius(s, zl), zl), (rm, h / 2), t, 0.5)
     walls += _plates((rm, h / 2), (rt, h), t, 0.5)
-    disc = g._segment("cylinder", (0, 0, 0), (0, 0, tb), rb - 0.0005)
+    disc = prim.segment("cylinder", (0, 0, 0), (0, 0, tb), rb - 0.0005)
     knots = path[::2]
     grip = [
-        g._segment("capsule", p, q, s.handle_radius)
+        prim.segment("capsule", p, q, s.handle_radius)
         for p, q in zip(knots[:-1], knots[1:], strict=True)
     ]
     return parts, (disc, *walls, *grip)
@@ -225,22 +227,22 @@ def _brik(s: BrikShape):
     parts = [("box", sides, "box_print"), ("ends", (*ends, None), None)]
     if s.chamfer > 0:
         pts = np.vstack([np.column_stack([outline, np.full(len(outline), z)]) for z in (0.0, h)])
-        collision = [g._mesh_prim(meshes.convex_polyhedron(pts))]
+        collision = [prim.mesh_prim(meshes.convex_polyhedron(pts))]
     else:
-        collision = [g._box((w, d, h / 2), (0, 0, h / 2))]
+        collision = [prim.box((w, d, h / 2), (0, 0, h / 2))]
     if s.straw_radius > 0:
         rs, m = s.straw_radius, s.straw_margin
         sign = -1.0 if s.straw_mirror else 1.0
         xm = w - m - s.chamfer
         p0, p1 = (-sign * xm, d + rs, m), (sign * xm, d + rs, h - m)
         parts.append(("straw", (*meshes.cylinder_between(p0, p1, rs, 8), None), None))
-        collision.append(g._segment("capsule", p0, p1, rs, density=0.05))
+        collision.append(prim.segment("capsule", p0, p1, rs, density=0.05))
     if s.cap_height > 0:
         x = w - s.cap_radius - 0.006 - s.chamfer / 2
         cap = meshes.cylinder_between((x, 0, h), (x, 0, h + s.cap_height), s.cap_radius, 12)
         parts.append(("cap", (*cap, None), None))
         collision.append(
-            g._segment("cylinder", (x, 0, h), (x, 0, h + s.cap_height), s.cap_radius, 0.3)
+            prim.segment("cylinder", (x, 0, h), (x, 0, h + s.cap_height), s.cap_radius, 0.3)
         )
     return parts, tuple(collision)
 
@@ -272,8 +274,6 @@ def visual_bounds(shape) -> tuple[tuple[float, float, float], tuple[float, float
 
 
 def _texture(inst: ObjectInstance, kind: str) -> np.ndarray:
-    from ipbench.assets.objects.textures import make_texture
-
     digest = hashlib.sha256(f"ipbench.objects/v2/texture/{inst.name}/{kind}".encode()).digest()
     seed = int.from_bytes(digest[:8], "little")
     base, accent = inst.rgba[:3], inst.accent_rgba[:3]
@@ -282,22 +282,24 @@ def _texture(inst: ObjectInstance, kind: str) -> np.ndarray:
     return np.ascontiguousarray(make_texture(kind, seed, base, accent, TEXTURE_SIZES[kind]))
 
 
-def family_parts(inst: ObjectInstance) -> tuple[tuple[g.VisualPart, ...], tuple[g.Primitive, ...]]:
+def family_parts(
+    inst: ObjectInstance,
+) -> tuple[tuple[prim.VisualPart, ...], tuple[prim.Primitive, ...]]:
     """Visual parts (with textures) and collision primitives of a v2 instance."""
     parts, collision = _parts(inst.shape, inst.family)
     if collision is None:  # round bottles: the v1 hull
-        collision = g._bottle(inst.shape, inst)[1]
+        collision = v1._bottle(inst.shape, inst)[1]
     textures: dict[str, np.ndarray] = {}
     visual = []
     for suffix, (v, f, uv), kind in parts:
         rgba = inst.accent_rgba if suffix in ("inner", "cap", "straw") else inst.rgba
         shiny = inst.specular and suffix in ("outer", "inner", "handle")
         if kind is None:
-            visual.append(g.VisualPart(suffix, v, f, rgba, shiny))
+            visual.append(prim.VisualPart(suffix, v, f, rgba, shiny))
             continue
         if kind not in textures:
             textures[kind] = _texture(inst, kind)
         visual.append(
-            g.VisualPart(suffix, v, f, rgba, shiny, np.asarray(uv, float), textures[kind])
+            prim.VisualPart(suffix, v, f, rgba, shiny, np.asarray(uv, float), textures[kind])
         )
     return tuple(visual), tuple(collision)

@@ -14,8 +14,9 @@ from functools import cache
 
 import numpy as np
 
-from ipbench.assets.objects.catalog import ObjectInstance
-from ipbench.assets.objects.geometry import Primitive, object_geometry
+from ipbench.assets.objects.geometry import object_geometry
+from ipbench.assets.objects.instance import ObjectInstance
+from ipbench.assets.objects.primitives import Primitive
 
 __all__ = ["RestingPose", "resting_poses"]
 

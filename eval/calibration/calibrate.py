@@ -24,7 +24,7 @@ and the robot samples views automatically, as the thesis did with its arm:
 Arms and PTUs are set kinematically (``mj_forward``; no physics). The robot's own poses are
 the forward kinematics of the model from its joint readings. With
 :attr:`CalibrationCaptureConfig.robot_seed` set, the simulated cell is a *true* one that
-differs from the nominal model by :func:`~ipbench.envs.model_errors.sample_model_errors`
+differs from the nominal model by :func:`~ipbench.envs.cell.model_errors.sample_model_errors`
 (camera mounts, PTU bases and zeros, lens distortion): images are rendered from it and
 distorted by its lenses, and the truth is read from it. The arm chains carry no error, so the
 gripper and flange poses the robot computes from its encoders are the true ones.
@@ -60,17 +60,17 @@ from ipbench.assets.compose import (
     build_workcell_spec,
     head_gaze,
 )
-from ipbench.envs.calibration_file import (
+from ipbench.envs.cell.calibration_file import (
     CalibrationFile,
     CameraCalibration,
     HandEyeEntry,
     StereoEntry,
 )
+from ipbench.envs.cell.model_errors import ModelErrors, apply_model_errors, sample_model_errors
 from ipbench.envs.ik import ArmIK, look_at_rotation
-from ipbench.envs.lens_distortion import distort_image
-from ipbench.envs.model_errors import ModelErrors, apply_model_errors, sample_model_errors
 from ipbench.envs.ptu import ptu_spec
 from ipbench.envs.sensors import SensorRenderer, camera_pose, intrinsics
+from ipbench.envs.sensors.lens_distortion import distort_image
 from ipbench.envs.sorting import WRIST_SIZE
 from ipbench.perception.calibration.errors import CalibrationError
 from ipbench.perception.calibration.hand_eye import (

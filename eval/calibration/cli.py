@@ -10,6 +10,8 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from ipbench.eval.cli_options import run_to_summary, writable
+
 __all__ = ["add_calibrate", "add_eval_calibration", "main_calibrate", "main_eval_calibration"]
 
 
@@ -35,7 +37,7 @@ def add_calibrate(sub) -> argparse.ArgumentParser:
         type=_robot_seed,
         default=0,
         help="seed of the simulated cell's model errors (camera mounts, PTU bases and zeros, "
-        "lenses; ipbench.envs.model_errors), the envs' robot_seed (default 0, the envs' "
+        "lenses; ipbench.envs.cell.model_errors), the envs' robot_seed (default 0, the envs' "
         "default cell); 'none': the cell is exactly the nominal model",
     )
     p.add_argument("--overwrite", action="store_true", help="replace an existing FILE")
@@ -109,7 +111,7 @@ def add_eval_calibration(eval_sub) -> argparse.ArgumentParser:
     return p
 
 
-def main_eval_calibration(args, writable) -> int:
+def main_eval_calibration(args) -> int:
     """Run ``ipbench eval calibration``."""
     from ipbench.eval.calibration.evaluate import run_calibration_eval
     from ipbench.eval.calibration.study import CalibrationStudyError
@@ -118,24 +120,27 @@ def main_eval_calibration(args, writable) -> int:
     if args.seed < 0:
         raise SystemExit(f"ipbench: --seed is {args.seed}; valid: an int >= 0")
     writable(args.out, "--out")
-    try:
-        metrics = run_calibration_eval(args.out, seed=args.seed)
-    except (CalibrationError, CalibrationStudyError) as err:
-        raise SystemExit(f"ipbench: {err}") from err
-    for cam, by_method in metrics["hand_eye"].items():
-        row = ", ".join(
-            f"{m} {v['rotation_deg']:.3f} deg / {v['translation_mm']:.1f} mm"
-            if v["rotation_deg"] is not None
-            else f"{m} refused"
-            for m, v in by_method.items()
-        )
-        print(f"hand-eye {cam} (10 poses): {row}")
-    for cam, c in metrics["self_calibration"]["cameras"].items():
-        n, k = c["nominal"], c["calibrated"]
-        print(
-            f"self-calibration {cam}: nominal {n['rotation_deg']:.2f} deg / "
-            f"{n['translation_mm']:.1f} mm -> calibrated {k['rotation_deg']:.3f} deg / "
-            f"{k['translation_mm']:.2f} mm ({c['method']})"
-        )
-    print(f"report written to {(args.out / 'calibration.md').resolve()}")
-    return 0
+
+    def rows(metrics):
+        for cam, by_method in metrics["hand_eye"].items():
+            row = ", ".join(
+                f"{m} {v['rotation_deg']:.3f} deg / {v['translation_mm']:.1f} mm"
+                if v["rotation_deg"] is not None
+                else f"{m} refused"
+                for m, v in by_method.items()
+            )
+            yield f"hand-eye {cam} (10 poses): {row}"
+        for cam, c in metrics["self_calibration"]["cameras"].items():
+            n, k = c["nominal"], c["calibrated"]
+            yield (
+                f"self-calibration {cam}: nominal {n['rotation_deg']:.2f} deg / "
+                f"{n['translation_mm']:.1f} mm -> calibrated {k['rotation_deg']:.3f} deg / "
+                f"{k['translation_mm']:.2f} mm ({c['method']})"
+            )
+
+    return run_to_summary(
+        lambda: run_calibration_eval(args.out, seed=args.seed),
+        rows,
+        f"report written to {(args.out / 'calibration.md').resolve()}",
+        (CalibrationError, CalibrationStudyError),
+    )

@@ -5,7 +5,7 @@ The 24 mm checkerboard (thesis ch. 4) is presented by the left arm at ``poses`` 
 presentation
 box, the face turned towards the head within ``head_tilt_deg`` and rolled within
 ``head_roll_deg``), in the *true* cell of ``robot_seed``
-(:func:`~ipbench.envs.model_errors.sample_model_errors`), and reconstructed:
+(:func:`~ipbench.envs.cell.model_errors.sample_model_errors`), and reconstructed:
 
 - **head** (:func:`reconstruct_head`): per trial the board is presented, both head cameras
   image the scene at the calibration gaze ``g0`` (the *before* images), then both PTUs move to
@@ -37,7 +37,7 @@ box, the face turned towards the head within ``head_tilt_deg`` and rolled within
   on the table where the left camera's view at ``g0`` meets it (the room's posters are out of
   the head's view at that gaze). The board, still during a trial, is also in view.
 
-  PTU backlash (:class:`~ipbench.envs.model_errors.PtuErrors`, a dead band ``b`` per axis; no
+  PTU backlash (:class:`~ipbench.envs.cell.model_errors.PtuErrors`, a dead band ``b`` per axis; no
   env applies it yet): the output shaft lags the commanded (encoder) position by ``b / 2``
   against the direction of the last move. The calibration capture reached ``g0`` moving from
   the zero position, so at ``g`` the true angle is ``g - (b / 2) (s - s0)`` with
@@ -75,7 +75,7 @@ from ipbench.assets.calibration_target import add_target_plate
 from ipbench.assets.compose import HEAD_SIDES, build_workcell_spec
 from ipbench.assets.objects import CATEGORIES, get_instance
 from ipbench.assets.objects.builder import add_object
-from ipbench.envs.model_errors import ModelErrors, apply_model_errors, sample_model_errors
+from ipbench.envs.cell.model_errors import ModelErrors, apply_model_errors, sample_model_errors
 from ipbench.envs.ptu import ptu_spec
 from ipbench.envs.sensors import SensorRenderer, camera_pose, intrinsics
 from ipbench.eval.calibration.calibrate import (

@@ -2,11 +2,11 @@
 (thesis Table 4.4).
 
 The left arm holds the board face up at the capture's ``wrist_board_centre`` in the *true* cell
-of ``robot_seed`` (:func:`~ipbench.envs.model_errors.sample_model_errors`) and the right arm
+of ``robot_seed`` (:func:`~ipbench.envs.cell.model_errors.sample_model_errors`) and the right arm
 moves the Xtion to random viewpoints (the sampling of
 :mod:`ipbench.eval.calibration.calibrate`'s wrist
-capture). The depth is the Sorting-v2 sensor's (:data:`~ipbench.envs.depth_noise.
-STRUCTURED_LIGHT` via :meth:`~ipbench.envs.depth_noise.DepthNoiseModel.apply`, as
+capture). The depth is the Sorting-v2 sensor's (:data:`~ipbench.envs.sensors.depth_noise.
+STRUCTURED_LIGHT` via :meth:`~ipbench.envs.sensors.depth_noise.DepthNoiseModel.apply`, as
 ``SortingEnv._observation`` calls it, with one unit error per run whose depth-to-RGB shift is
 the true cell's registration offset, as in the envs). Each corner found in the RGB image
 (undistorted with the calibrated lens) takes the depth at its nearest pixel and is
@@ -19,7 +19,7 @@ Two measurements per view:
   board model, per axis of the camera frame.
 - **robot frame** (:data:`ROBOT_FRAME_CHAINS`): the points carried into the robot base frame
   by what the robot believes of its camera at its joint readings, exactly as
-  :class:`~ipbench.envs.extrinsics.CameraKnowledge` gives it to the envs: ``calibrated`` (the
+  :class:`~ipbench.envs.cell.extrinsics.CameraKnowledge` gives it to the envs: ``calibrated`` (the
   nominal forward kinematics of the flange times the calibration file's eye-in-hand ``X``)
   and ``nominal`` (the nominal model's camera mount: no calibration); against each corner's
   TRUE base-frame position (the plate's pose in the true cell and the board's layout on it).
@@ -41,10 +41,10 @@ import cv2
 import mujoco
 import numpy as np
 
-from ipbench.envs.calibration_file import CalibrationFile
-from ipbench.envs.depth_noise import STRUCTURED_LIGHT, DepthNoiseConfig, DepthNoiseModel
-from ipbench.envs.extrinsics import BASE_BODY, CameraKnowledge
+from ipbench.envs.cell.calibration_file import CalibrationFile
+from ipbench.envs.cell.extrinsics import BASE_BODY, CameraKnowledge
 from ipbench.envs.sensors import SensorRenderer, intrinsics, specular_geoms
+from ipbench.envs.sensors.depth_noise import STRUCTURED_LIGHT, DepthNoiseConfig, DepthNoiseModel
 from ipbench.eval.calibration.calibrate import (
     CAMERAS,
     CellCalibration,

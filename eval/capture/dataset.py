@@ -43,7 +43,6 @@ from ipbench.assets.objects import (
     resting_poses,
 )
 from ipbench.envs import env_config
-from ipbench.envs.depth_noise import DepthNoiseConfig, DepthNoiseModel
 from ipbench.envs.ik import look_at_rotation
 from ipbench.envs.layout import Layout, PlacedObject
 from ipbench.envs.robot import RobotController, ik_model
@@ -53,6 +52,7 @@ from ipbench.envs.sensors import (
     intrinsics,
     specular_geoms,
 )
+from ipbench.envs.sensors.depth_noise import DepthNoiseConfig, DepthNoiseModel
 from ipbench.envs.skills import Skills
 from ipbench.envs.sorting import WRIST_CAMERA, WRIST_SIZE
 from ipbench.envs.world import Places, build_world

@@ -33,10 +33,10 @@ import mujoco
 import numpy as np
 
 from ipbench.assets.compose import GRIPPER_ARM
-from ipbench.envs.depth_noise import DepthNoiseConfig, DepthNoiseModel
 from ipbench.envs.ik import look_at_rotation
 from ipbench.envs.robot import PlanningError
 from ipbench.envs.sensors import camera_pose, intrinsics
+from ipbench.envs.sensors.depth_noise import DepthNoiseConfig, DepthNoiseModel
 from ipbench.envs.sorting import WRIST_CAMERA, WRIST_SIZE
 from ipbench.perception.cloud import Cloud
 

@@ -49,9 +49,9 @@ from ipbench.perception.features import fpfh
 from ipbench.perception.segmentation import segment_in_hand
 from ipbench.perception.viewset import POINTS_PER_VIEW, ViewSet, sample_points
 from ipbench.policies import EVAL_CAMERAS
-from ipbench.policies.free_grasp import GRASP_DEPTH
+from ipbench.policies.grasping.boxes import ROUND, grasp_point, grasp_yaws, is_short, jaw_span
+from ipbench.policies.grasping.free import GRASP_DEPTH
 from ipbench.policies.kinematics import HandKinematics
-from ipbench.policies.scripted import ROUND, grasp_point, grasp_yaws, is_short, jaw_span
 
 if TYPE_CHECKING:
     from ipbench.eval.capture.dataset import DatasetConfig

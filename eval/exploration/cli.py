@@ -11,19 +11,16 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from ipbench.eval.cli_options import add_json_option
+from ipbench.eval.cli_options import (
+    add_json_option,
+    parse_names,
+    parse_seeds,
+    print_figures,
+    run_to_summary,
+    writable,
+)
 
 __all__ = ["add_bench_exploration", "add_eval_exploration", "main_exploration"]
-
-
-def _names(text: str, valid: tuple[str, ...], what: str) -> tuple[str, ...]:
-    names = tuple(n.strip() for n in text.split(",") if n.strip())
-    bad = [n for n in names if n not in valid]
-    if bad or not names:
-        raise SystemExit(
-            f"ipbench: unknown {what} {', '.join(bad) or '(none)'}; valid: {', '.join(valid)}"
-        )
-    return names
 
 
 def add_eval_exploration(eval_sub) -> argparse.ArgumentParser:
@@ -82,11 +79,11 @@ def add_bench_exploration(bench_sub) -> argparse.ArgumentParser:
     return p
 
 
-def main_exploration(args, seeds, writable, print_figures) -> int:
-    """Run ``eval exploration`` or ``bench exploration`` (helpers from :mod:`.cli`)."""
+def main_exploration(args) -> int:
+    """Run ``eval exploration`` or ``bench exploration``."""
     from ipbench.perception.features2d import FEATURE_TYPES
 
-    features = _names(args.features, FEATURE_TYPES, "feature type(s)")
+    features = parse_names(args.features, FEATURE_TYPES, "feature type(s)")
     if args.command == "bench":
         from ipbench.eval.bench.exploration import bench_exploration
         from ipbench.eval.bench.sim import report
@@ -102,12 +99,12 @@ def main_exploration(args, seeds, writable, print_figures) -> int:
     )
     from ipbench.policies.exploration import EXPLORATION_POLICIES
 
-    try:
+    def run():
         config = ExplorationEvalConfig(
-            scenes=_names(args.scenes, tuple(LEVELS), "scene(s)"),
-            policies=_names(args.policies, EXPLORATION_POLICIES, "policy(ies)"),
+            scenes=parse_names(args.scenes, tuple(LEVELS), "scene(s)"),
+            policies=parse_names(args.policies, EXPLORATION_POLICIES, "policy(ies)"),
             features=features,
-            seeds=seeds(args.seeds),
+            seeds=parse_seeds(args.seeds),
             saccade_budget=args.budget,
             workers=args.workers,
             backend=args.backend,
@@ -116,15 +113,20 @@ def main_exploration(args, seeds, writable, print_figures) -> int:
         )
         writable(args.out, "--out")
         writable(args.cache, "--cache")
-        summary = run_exploration_eval(args.out, args.cache, config)
-    except ExplorationEvalError as err:
-        raise SystemExit(f"ipbench: {err}") from err
-    for scene, by_policy in summary.items():
-        for policy, by_feature in by_policy.items():
-            row = ", ".join(
-                f"{f} {m['performance_mean']:.0%} [{m['ci_low']:.0%}, {m['ci_high']:.0%}]"
-                for f, m in by_feature.items()
-            )
-            print(f"{scene} {policy}: {row}")
-    print(f"report written to {(args.out / 'exploration.md').resolve()}")
-    return 0
+        return run_exploration_eval(args.out, args.cache, config)
+
+    def rows(summary):
+        for scene, by_policy in summary.items():
+            for policy, by_feature in by_policy.items():
+                row = ", ".join(
+                    f"{f} {m['performance_mean']:.0%} [{m['ci_low']:.0%}, {m['ci_high']:.0%}]"
+                    for f, m in by_feature.items()
+                )
+                yield f"{scene} {policy}: {row}"
+
+    return run_to_summary(
+        run,
+        rows,
+        f"report written to {(args.out / 'exploration.md').resolve()}",
+        (ExplorationEvalError,),
+    )

@@ -30,7 +30,7 @@ from threadpoolctl import threadpool_limits
 import ipbench.envs  # noqa: F401  (registers the environments)
 from ipbench.envs.exploration_scene import LEVELS
 from ipbench.eval.capture.exploration_database import DatabaseCaptureConfig, load_or_build_database
-from ipbench.eval.episodes import BACKENDS, check_out, open_run, record_episodes, run_episodes
+from ipbench.eval.episodes import BACKENDS, check_out, run_episodes, run_grid
 from ipbench.perception.features2d import FEATURE_TYPES
 from ipbench.perception.object_database import ObjectDatabase
 from ipbench.perception.saliency import INHIBITION_RADIUS_RAD
@@ -312,7 +312,8 @@ def run_exploration_eval(
         f: load_or_build_database(f, Path(cache), config.database, progress)
         for f in config.features
     }
-    log = open_run(
+    first = min(config.seeds)
+    log = run_grid(
         out,
         fingerprint,
         {
@@ -322,42 +323,31 @@ def run_exploration_eval(
             "config": asdict(config),
         },
         _record_key,
-        ExplorationEvalError,
-    )
-    done = log.done()
-    first = min(config.seeds)
-    tasks = [
-        ExplorationTask(
-            scene,
-            policy,
-            feature,
-            int(seed),
-            out / "videos" / f"{scene}_{policy}_{feature}_seed{seed}.mp4"
-            if config.video and seed == first
+        [
+            (scene, policy, feature, int(seed))
+            for scene in config.scenes
+            for policy in config.policies
+            for feature in config.features
+            for seed in config.seeds
+        ],
+        lambda k: ExplorationTask(
+            *k,
+            out / "videos" / f"{k[0]}_{k[1]}_{k[2]}_seed{k[3]}.mp4"
+            if config.video and k[3] == first
             else None,
-        )
-        for scene in config.scenes
-        for policy in config.policies
-        for feature in config.features
-        for seed in config.seeds
-        if (scene, policy, feature, int(seed)) not in done
-    ]
-    records = run_episodes(
-        run_exploration_episode,
-        tasks,
-        (databases, config),
-        workers=config.workers,
-        backend=config.backend,
-        ray_address=config.ray_address,
-        cost=_cost,
-        error=ExplorationEvalError,
-    )
-    record_episodes(
-        log,
-        records,
-        len(tasks),
-        len(done),
+        ),
+        lambda tasks: run_episodes(
+            run_exploration_episode,
+            tasks,
+            (databases, config),
+            workers=config.workers,
+            backend=config.backend,
+            ray_address=config.ray_address,
+            cost=_cost,
+            error=ExplorationEvalError,
+        ),
         lambda r: f"{r['scene']} {r['policy']} {r['feature']} {r['performance']:.0%}",
+        ExplorationEvalError,
         progress,
     )
     # the report covers every episode in the folder (all of one fingerprint): a benchmark run

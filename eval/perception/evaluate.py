@@ -33,7 +33,7 @@ import numpy as np
 from threadpoolctl import threadpool_limits
 
 from ipbench.assets.objects import CATEGORIES, instances
-from ipbench.envs.depth_noise import SENSOR_EFFECTS, without_effect
+from ipbench.envs.sensors.depth_noise import SENSOR_EFFECTS, without_effect
 from ipbench.eval.capture.dataset import DatasetConfig, ViewSet, load_or_build
 from ipbench.perception._pointnet_config import PointNetConfig
 from ipbench.perception.classifiers import (
@@ -339,7 +339,7 @@ def segmentation_scores(
     import gymnasium as gym
 
     import ipbench.envs  # noqa: F401
-    from ipbench.envs.layout import STANDARD_SCENES
+    from ipbench.envs.sorting_scenes import STANDARD_SCENES
 
     out = {}
     for scene in STANDARD_SCENES:

@@ -3,8 +3,8 @@
 Zhang's method as OpenCV implements it (``cv2.calibrateCameraExtended``): a closed-form start
 from the board homographies, then Levenberg-Marquardt on all reprojection errors, fitting
 ``fx, fy, cx, cy`` and the Brown-Conrady ``(k1, k2, p1, p2, k3)`` (the model
-:mod:`ipbench.envs.lens_distortion` applies to the renders) plus one board pose per view. The
-thesis calibrated each camera from 10 poses of its 24 mm checkerboard; OpenCV needs at least 3
+:mod:`ipbench.envs.sensors.lens_distortion` applies to the renders) plus one board pose per view.
+The thesis calibrated each camera from 10 poses of its 24 mm checkerboard; OpenCV needs at least 3
 views of a planar target that are not all parallel to each other.
 
 The reprojection error reported is OpenCV's: the RMS over all corners of the pixel distance

@@ -42,9 +42,8 @@ import mujoco
 import numpy as np
 
 from ipbench.assets.compose import CAMERA_ARM, HEAD_SIDES
-
-from .lens_distortion import D5100_35MM, XTION_RGB, LensDistortion
-from .ptu import AXES, STEP_RAD
+from ipbench.envs.ptu import AXES, STEP_RAD
+from ipbench.envs.sensors.lens_distortion import D5100_35MM, XTION_RGB, LensDistortion
 
 __all__ = [
     "CAMERA_MOUNTS",
@@ -302,8 +301,8 @@ def sample_model_errors(seed: int) -> ModelErrors:
     Own stream ``numpy.random.default_rng([seed, 1400])``. Order: per mount of :data:`MOUNTS`
     translation then rotation (3 normals each); per PTU (left, right) zero offsets then backlash;
     the depth registration offset. True lenses are the presets (``D5100_35MM`` on the head,
-    ``XTION_RGB`` on the wrist, :mod:`ipbench.envs.lens_distortion`), not drawn: no unit-to-unit
-    spread was found.
+    ``XTION_RGB`` on the wrist, :mod:`ipbench.envs.sensors.lens_distortion`), not drawn: no
+    unit-to-unit spread was found.
     """
     if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
         raise ModelErrorsError(f"seed must be a non-negative int, got {seed!r}")

@@ -7,7 +7,7 @@ poses ``*_pose`` and (not ``"true"``) distortion ``*_dist`` come from:
   model and the images are pinhole renders. The envs take the same code path as without the
   option and never build a :class:`CameraKnowledge`.
 * ``"nominal"``: the world is the TRUE one (the nominal model with
-  :func:`~ipbench.envs.model_errors.sample_model_errors` of ``robot_seed`` applied, images
+  :func:`~ipbench.envs.cell.model_errors.sample_model_errors` of ``robot_seed`` applied, images
   distorted by its lenses, the PTUs' backlash acting on every head move (Exploration: the output
   trails the motor, :func:`~ipbench.envs.ptu.play`; the encoders count the motor) and the wrist
   depth image shifted by the Xtion's depth-to-RGB registration error (Sorting: in place of the
@@ -15,7 +15,7 @@ poses ``*_pose`` and (not ``"true"``) distortion ``*_dist`` come from:
   the nominal model (:func:`~ipbench.envs.sensors.intrinsics`), ``dist`` zeros (a pinhole), the
   pose by forward kinematics of the NOMINAL model at the joint encoder readings.
 * ``"calibrated"``: the same true world; ``K`` and ``dist`` from a calibration file
-  (:class:`~ipbench.envs.calibration_file.CalibrationFile`, written by
+  (:class:`~ipbench.envs.cell.calibration_file.CalibrationFile`, written by
   ``ipbench calibrate``), ``K`` scaled to the observed image size; the wrist pose is the nominal
   FK of the flange ``right_flange`` times the file's eye-in-hand ``X`` (camera-to-flange); a head
   camera's pose is the file's eye-to-hand ``X`` (camera-to-``base`` at the file's ``head_gaze``
@@ -40,10 +40,10 @@ import mujoco
 import numpy as np
 
 from ipbench.assets.compose import CAMERA_ARM, HEAD_SIDES, build_workcell_spec
-from ipbench.envs.calibration_file import CalibrationFile, CalibrationFileError
-from ipbench.envs.lens_distortion import LensDistortion, distort_image
+from ipbench.envs.cell.calibration_file import CalibrationFile, CalibrationFileError
 from ipbench.envs.ptu import AXES
 from ipbench.envs.sensors import camera_pose, intrinsics
+from ipbench.envs.sensors.lens_distortion import LensDistortion, distort_image
 
 __all__ = [
     "CAMERA_MODEL_NAMES",

@@ -3,7 +3,7 @@
 One :class:`SensorRenderer` (one offscreen OpenGL context) renders all cameras of a model with
 MuJoCo's classic renderer, without shadows, reflections, haze or decor, showing geom groups 0-2
 only (group 3 holds collision geoms) and no sites. :class:`RgbdCamera` adds the structured-light
-depth noise of :mod:`ipbench.envs.depth_noise`. Headless use needs ``MUJOCO_GL=egl`` (or
+depth noise of :mod:`ipbench.envs.sensors.depth_noise`. Headless use needs ``MUJOCO_GL=egl`` (or
 ``osmesa``) set before MuJoCo is imported.
 
 Conventions: images are (H, W[, C]) with row 0 at the top; depth is the z-depth along the

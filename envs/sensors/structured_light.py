@@ -1,6 +1,6 @@
 """Projector shadow, disparity-domain block matching and per-unit error of a Kinect v1 / Xtion.
 
-Used by :class:`ipbench.envs.depth_noise.DepthNoiseModel` (switches and numbers live in its
+Used by :class:`ipbench.envs.sensors.depth_noise.DepthNoiseModel` (switches and numbers live in its
 ``DepthNoiseConfig``); all randomness comes from the caller's ``numpy.random.Generator``.
 
 **Geometry.** The IR projector sits ``b = 0.075`` m beside the IR camera along the camera's x
@@ -57,7 +57,7 @@ from types import SimpleNamespace
 import cv2
 import numpy as np
 
-from . import _sensor_kernels as _k
+from . import _kernels as _k
 
 __all__ = [
     "BlockMatcher",
@@ -100,7 +100,8 @@ def draw_unit_error(
 
 def apply_unit(depth: np.ndarray, unit: UnitError) -> np.ndarray:
     """``depth`` (H, W) float32 m, 0 = missing, with ``unit``'s error (in place if unshifted).
-    (:class:`~ipbench.envs.depth_noise.DepthNoiseModel` applies the same in its lateral pass.)"""
+    (:class:`~ipbench.envs.sensors.depth_noise.DepthNoiseModel` applies the same in its lateral
+    pass.)"""
     if unit.depth_scale != 0.0 or unit.depth_offset_m != 0.0:
         valid = np.greater(depth, 0).view(np.uint8)
         depth *= np.float32(1.0 + unit.depth_scale)

@@ -1,7 +1,7 @@
 """Compiled per-pixel kernels of the depth sensor model (numba, single-threaded, no fast-math).
 
-Each kernel fuses a chain of array operations of :mod:`ipbench.envs.depth_noise` or
-:mod:`ipbench.envs.structured_light` into one pass over the image, with the same float32
+Each kernel fuses a chain of array operations of :mod:`ipbench.envs.sensors.depth_noise` or
+:mod:`ipbench.envs.sensors.structured_light` into one pass over the image, with the same float32
 operations in the same order, so its output is bit-identical to the chain it replaces (the
 digest tests of both modules hold it to that); the chain is written in each docstring. One pass
 instead of ~10 keeps the image in cache: 3-5x faster than the vectorised numpy/OpenCV chain on

@@ -347,7 +347,7 @@ class CalibrationFile:
         PTU encoder readings (left pan, left tilt, right pan, right tilt), rad, at which the
         head cameras' eye-to-hand ``X`` (and the stereo transform) were measured; ``None`` when
         unknown (files that predate the key). Needed by ``extrinsics="calibrated"`` to carry a
-        head camera's pose to another gaze (:mod:`ipbench.envs.extrinsics`).
+        head camera's pose to another gaze (:mod:`ipbench.envs.cell.extrinsics`).
     cell : mapping or None
         ``{"robot_seed": R}`` (int >= 0, or None for the nominal cell): the simulated cell the
         file was measured in; ``None`` when unknown (files that predate the key). The envs

@@ -4,11 +4,11 @@ The camera sees only an object's front, so the box of its points is short along 
 sight; the footprint is completed by assuming the unseen back is as deep as the object is wide
 (:func:`completed_footprint`: a cylinder's or a box's centre moves back by half the missing
 depth). The grasp point is that footprint's centre, lowered for short objects to just under the top
-(a bowl is held by its rim, as in :func:`ipbench.policies.scripted.grasp_point`); a short
+(a bowl is held by its rim, as in :func:`ipbench.policies.grasping.boxes.grasp_point`); a short
 round object is centred on the circle fitted to its rim (:func:`rim_circle`), which a wide bowl
 in 21 cm jaws needs to within about a centimetre. The jaws
 close across the box's narrower horizontal side unless the depth image shows that grasp to be
-blocked (:mod:`ipbench.policies.free_grasp`: a finger would land on something, or another
+blocked (:mod:`ipbench.policies.grasping.free`: a finger would land on something, or another
 object is between the pads), in which case a wider opening, the other side or a diagonal is
 taken (:func:`grasp_target`). After a failed grasp the next attempt at the same place turns
 the first choice by 90°.
@@ -22,13 +22,13 @@ import numpy as np
 
 from ipbench.envs.sorting import MAX_JAW_OPENING
 from ipbench.perception.segmentation import Segment, grasp_yaw
-from ipbench.policies.free_grasp import (
+from ipbench.policies.grasping.boxes import SHORT, TOP_MARGIN, opening_across
+from ipbench.policies.grasping.free import (
     DEFAULT_FREE_GRASP,
     GRASP_DEPTH,
     FreeGraspConfig,
     check_grasp,
 )
-from ipbench.policies.scripted import SHORT, TOP_MARGIN, opening_across
 
 __all__ = [
     "FailureMemory",
@@ -62,7 +62,7 @@ class GraspTarget:
     """``position`` (3,) world m, jaw ``yaw`` (rad, in [-pi, pi)) and jaw ``opening`` (m: the
     object's completed width across the jaws plus ``OPENING_MARGIN``) for the env's action;
     ``free``: the depth image shows the jaws' volumes clear, ``clearance`` (m) to spare
-    (:mod:`ipbench.policies.free_grasp`)."""
+    (:mod:`ipbench.policies.grasping.free`)."""
 
     position: np.ndarray
     yaw: float

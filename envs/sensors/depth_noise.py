@@ -20,7 +20,7 @@ angle between the surface normal and the camera ray, estimated from the depth im
    each pixel takes the depth at a rounded Gaussian offset (nearest neighbour), which jags
    depth edges and hole borders.
 
-Structured-light effects (:mod:`ipbench.envs.structured_light`, sources there), all off in
+Structured-light effects (:mod:`ipbench.envs.sensors.structured_light`, sources there), all off in
 ``DepthNoiseConfig()`` (``Sorting-v0``/``v1`` keep their exact output) and on in
 :data:`STRUCTURED_LIGHT`: the projector shadow (needs a depth image rendered from the projector,
 :attr:`DepthNoiseModel.projector_offset`; shadowed pixels are missing input); 9x9 block matching
@@ -53,7 +53,7 @@ from types import SimpleNamespace
 import cv2
 import numpy as np
 
-from . import _sensor_kernels as _k
+from . import _kernels as _k
 from .structured_light import (
     BlockMatcher,
     UnitError,
@@ -351,9 +351,9 @@ class DepthNoiseModel:
         centre), for incidence angles. ``rng``: all randomness. ``specular``: optional (H, W)
         bool mask of specular surfaces. ``projector_depth``: optional (H, W) z-depth rendered
         from :attr:`projector_offset` with the same intrinsics: with it the projector shadow is
-        found by shadow mapping (:func:`~ipbench.envs.structured_light.projector_lit`, the
+        found by shadow mapping (:func:`~ipbench.envs.sensors.structured_light.projector_lit`, the
         reference), without it from ``depth`` alone along the scan lines
-        (:func:`~ipbench.envs.structured_light.projector_visible`: no second render; they
+        (:func:`~ipbench.envs.sensors.structured_light.projector_visible`: no second render; they
         agree on 99.7 % of a cluttered scene's pixels). ``unit``: this unit's error
         (:meth:`draw_unit`; None: none). With ``enabled=False``: ``depth`` clipped to the range.
         """
@@ -485,7 +485,7 @@ class DepthNoiseModel:
         return _k.specular_drop_into(specular, cosv, self._cos_face, blobs, ws.mask)
 
     def _blobs(self, shape, rng, ws) -> tuple:
-        """``(use, field, dy, dx)`` of :func:`~ipbench.envs._sensor_kernels.specular_drop_into`:
+        """``(use, field, dy, dx)`` of :func:`~ipbench.envs.sensors._kernels.specular_drop_into`:
         random cells of ``specular_blob_px`` px interpolated, with a margin for a random phase
         (``lh lw + 2`` draws), or none (no draws) without blobs."""
         (h, w), s = shape, self.config.specular_blob_px
