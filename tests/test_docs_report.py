@@ -357,9 +357,11 @@ def test_the_verdict_sentence_reads_the_score_interval():
             "p_vs_random_inspect": 0.29,
         },
         "pile": {"mean": -0.05, "ci_low": -0.08, "ci_high": -0.02, "p_vs_random_inspect": 0.001},
+        "edge": {"mean": 0.013, "ci_low": 0.0001, "ci_high": 0.027, "p_vs_random_inspect": 0.052},
     }
     sentence = verdict(scores)
     assert "uncluttered scene it pays (+1.7 points [+0.1, +3.3]" in sentence
     assert "cluttered scene it gains nothing measurable (+1.1 points" in sentence
     assert "pile scene it costs (-5.0 points" in sentence
+    assert "edge scene it is at the margin of measurable (+1.3 points [+0.0, +2.7]" in sentence
     assert verdict({}) == ""

@@ -125,15 +125,20 @@ def _how_chosen(info: Mapping, classifier: str) -> str:
 def verdict(scores: Mapping[str, Mapping]) -> str:
     """One sentence: per scene, whether inspecting by GP-IPM's confidence pays over inspecting
     blindly at equal effort — where the curve score's 95 % interval lies above 0 (pays), below 0
-    (costs), or spans it (no measurable gain); ``""`` without a score."""
+    (costs), or spans it (no measurable gain). Where the interval excludes 0 but the sign-flip
+    p is 0.05 or more (or the other way round), the two tests disagree at the margin, and the
+    sentence says so; ``""`` without a score."""
     parts = []
     for scene, sc in scores.items():
         low, high = sc.get("ci_low"), sc.get("ci_high")
+        p_val = sc.get("p_vs_random_inspect")
+        significant = p_val is not None and p_val < 0.05
+        above, below = low is not None and low > 0, high is not None and high < 0
         words = (
-            "pays"
-            if low is not None and low > 0
-            else "costs"
-            if high is not None and high < 0
+            ("pays" if above else "costs")
+            if (above or below) and significant
+            else "is at the margin of measurable"
+            if above or below or significant
             else "gains nothing measurable"
         )
         interval = f"{points(sc.get('mean'))} points {points_interval(low, high)}"

@@ -194,7 +194,7 @@ def agreement(rows: Sequence[Replication]) -> str:
         )
     listed = "; ".join(
         f"{r.scene} {r.quantity}: {points(r.gap.mean_diff)} "
-        f"{points_interval(r.gap.ci_low, r.gap.ci_high)}"
+        f"{points_interval(r.gap.ci_low, r.gap.ci_high)}, p {p_value(r.gap.p_value)}"
         for r in apart
     )
     return f"The seed sets land apart beyond their intervals in {len(apart)} row(s): {listed}."
