@@ -85,16 +85,20 @@ pile knocked others out, often into the next bin)."""
 _BIN_WALL = 0.005  # half thickness (m)
 
 
-def _add_bins(scene: mujoco.MjSpec, categories: Sequence[str], depth: float) -> None:
+def _add_bins(
+    scene: mujoco.MjSpec, categories: Sequence[str], depth: float, floor_backing: float = 0.0
+) -> None:
     """One open box per category along the ``bin_row_start`` site, ``depth`` m deep inside,
     coloured by material ``bin_<category>``; a site ``bin_<category>`` fills each bin's
-    inside (used to tell what is in which bin)."""
+    inside (used to tell what is in which bin); ``floor_backing`` > 0 makes each floor that
+    much thicker, downwards (:func:`build_workcell_spec`)."""
     start = np.array(scene.site("bin_row_start").pos)
     ix, iy, iz = 0.5 * BIN_INTERIOR[0], 0.5 * BIN_INTERIOR[1], 0.5 * depth
     w = _BIN_WALL
     # (half size, centre) of the floor and the four walls, in the bin frame.
+    b = 0.5 * floor_backing  # the floor grows downwards; its top stays at 2 w
     panels = [
-        ((ix + 2 * w, iy + 2 * w, w), (0, 0, w)),
+        ((ix + 2 * w, iy + 2 * w, w + b), (0, 0, w - b)),
         ((w, iy + 2 * w, iz), (ix + w, 0, 2 * w + iz)),
         ((w, iy + 2 * w, iz), (-ix - w, 0, 2 * w + iz)),
         ((ix, w, iz), (0, iy + w, 2 * w + iz)),
@@ -121,14 +125,23 @@ def _add_bins(scene: mujoco.MjSpec, categories: Sequence[str], depth: float) -> 
         )
 
 
-def build_workcell_spec(bin_depth: float = BIN_INTERIOR[2]) -> mujoco.MjSpec:
+def build_workcell_spec(
+    bin_depth: float = BIN_INTERIOR[2], bin_floor_backing: float = 0.0
+) -> mujoco.MjSpec:
     """The work cell scene (``workcell.xml``, which includes the robot) with the robot's parts
-    and the bins (``bin_depth`` m deep inside) attached; no objects yet."""
+    and the bins (``bin_depth`` m deep inside) attached; no objects yet.
+
+    ``bin_floor_backing`` (m): each bin's 1 cm floor is that much thicker, downwards, its top
+    where it was (0, as every released id). An object released above a bin hits the floor at
+    up to ~3 m/s, ~6 mm per 2 ms physics step: a thin part (a bowl's foot, a mug's handle)
+    can pass a 1 cm floor's mid-plane, after which the contact pushes it down and it stays
+    stuck in the floor.
+    """
     from ipbench.assets.objects import CATEGORIES
 
     scene = _load("scenes", "workcell.xml")
     attach_robot_parts(scene)
-    _add_bins(scene, CATEGORIES, bin_depth)
+    _add_bins(scene, CATEGORIES, bin_depth, bin_floor_backing)
     return scene
 
 

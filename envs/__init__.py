@@ -15,7 +15,9 @@ manipulation (fully opened jaws, blind descents; see :data:`ipbench.envs.sorting
 the benchmark's (:data:`LATEST`), add the v2 object catalogue and structured-light depth
 (:data:`ipbench.envs.sorting.V2`), faster physics, the ``pick`` command, and a third scene,
 ``"pile"`` (twenty objects piled, some on others; ``ipbench/SortingPile-v2`` or ``scene="pile"``),
-which v0/v1 ids refuse.
+which v0/v1 ids refuse. ``-v3`` ids (:data:`V3_IDS`, under development, see
+:data:`UNDER_DEVELOPMENT`) model bowls and mugs as a few convex pieces each and print labels
+upright (:data:`ipbench.envs.sorting.V3`).
 
 ``ipbench/Exploration-v0`` (:data:`EXPLORATION_IDS`, thesis ch. 3) is the second task family:
 the stereo head explores a table scene and reports the objects it recognises
@@ -29,7 +31,7 @@ import warnings
 
 from gymnasium.envs.registration import register
 
-from ipbench.envs.sorting import V0, V2, SortingConfig
+from ipbench.envs.sorting import V0, V2, V3, SortingConfig
 
 __all__ = [
     "ALL_IDS",
@@ -38,8 +40,10 @@ __all__ = [
     "LATEST",
     "UNDER_DEVELOPMENT",
     "V2_IDS",
+    "V3_IDS",
     "EnvIdError",
     "env_config",
+    "env_status",
 ]
 
 LATEST = "ipbench/Sorting-v2"
@@ -56,11 +60,19 @@ ENV_IDS: dict[str, dict] = {
     "ipbench/SortingUncluttered-v2": {"scene": "uncluttered", **V2},
     "ipbench/SortingCluttered-v2": {"scene": "cluttered", **V2},
     "ipbench/SortingPile-v2": {"scene": "pile", **V2},
+    "ipbench/Sorting-v3": dict(V3),
+    "ipbench/SortingUncluttered-v3": {"scene": "uncluttered", **V3},
+    "ipbench/SortingCluttered-v3": {"scene": "cluttered", **V3},
+    "ipbench/SortingPile-v3": {"scene": "pile", **V3},
 }
 """Every registered id and the keyword arguments it fixes."""
 
 V2_IDS: tuple[str, ...] = tuple(i for i in ENV_IDS if i.endswith("-v2"))
 """The v2 ids (released and frozen, as every id not in :data:`UNDER_DEVELOPMENT`)."""
+
+V3_IDS: tuple[str, ...] = tuple(i for i in ENV_IDS if i.endswith("-v3"))
+"""The v3 ids (:data:`~ipbench.envs.sorting.V3`: convex collision of hollow objects, upright
+prints; under development until their headline measurement releases them)."""
 
 EXPLORATION_IDS: dict[str, dict] = {"ipbench/Exploration-v0": {}}
 """The exploration ids (thesis ch. 3) and the keyword arguments each fixes; entry point
@@ -69,7 +81,7 @@ EXPLORATION_IDS: dict[str, dict] = {"ipbench/Exploration-v0": {}}
 ALL_IDS: tuple[str, ...] = (*ENV_IDS, *EXPLORATION_IDS)
 """Every registered ipbench id."""
 
-UNDER_DEVELOPMENT: tuple[str, ...] = ()
+UNDER_DEVELOPMENT: tuple[str, ...] = V3_IDS
 """Ids whose behaviour may still change until their headline measurement releases them; every
 other id is released and frozen (``tests/test_released_ids.py``)."""
 
@@ -89,9 +101,18 @@ def env_config(env_id: str, **overrides) -> SortingConfig:
     return SortingConfig(**{**ENV_IDS[env_id], **overrides})
 
 
-# Gymnasium calls an id "out of date" once a higher version is registered; v0 and v1 stay
-# released and reproducible (their results are the thesis reproduction's), so no warning.
-warnings.filterwarnings("ignore", message=r".*ipbench/\w+-v[01] is out of date")
+def env_status(env_id: str) -> str:
+    """``"under development"`` for an id in :data:`UNDER_DEVELOPMENT`, else ``"released"``;
+    an unregistered id is an :class:`EnvIdError` listing the registered ones."""
+    if env_id not in ALL_IDS:
+        raise EnvIdError(f"unknown env id {env_id!r}; valid: {', '.join(ALL_IDS)}")
+    return "under development" if env_id in UNDER_DEVELOPMENT else "released"
+
+
+# Gymnasium calls an id "out of date" once a higher version is registered; v0 to v2 stay
+# released and reproducible (v0/v1's results are the thesis reproduction's, v2 is the
+# benchmark's while v3 is under development), so no warning.
+warnings.filterwarnings("ignore", message=r".*ipbench/\w+-v[012] is out of date")
 
 for _id, _kwargs in ENV_IDS.items():
     register(id=_id, entry_point="ipbench.envs.sorting:SortingEnv", kwargs=_kwargs)

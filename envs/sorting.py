@@ -69,6 +69,7 @@ from ipbench.assets.compose import (
     build_workcell_spec,
 )
 from ipbench.assets.objects import CATALOGS, CATEGORIES
+from ipbench.assets.objects.object_model import ObjectModel
 from ipbench.envs.cell.extrinsics import CameraKnowledge, check_extrinsics, distort_labels
 from ipbench.envs.cell.model_errors import apply_model_errors, sample_model_errors
 from ipbench.envs.errors import InvalidActionError, ResetNeededError
@@ -104,6 +105,7 @@ __all__ = [
     "ResetNeededError",
     "V0",
     "V2",
+    "V3",
     "workcell_places",
     "SortingConfig",
     "SortingEnv",
@@ -202,6 +204,10 @@ class SortingConfig:
     finger_armature : reflected inertia of each gripper finger's drive (kg); ``None`` keeps
         the model's (``assets/motoman/gripper.xml``).
     bin_depth : inside depth of the bins (m).
+    bin_floor_backing : how much thicker each bin's 1 cm floor is, downwards, inside the bin
+        table (m; ``Sorting-v3``: 0.04, so that a bowl's foot or a mug's handle dropped into a
+        bin cannot pass the floor's mid-plane and stick in it, as it can with 0, every released
+        id: :func:`~ipbench.assets.compose.build_workcell_spec`).
     catalog : the object catalogue (``"v1"``: one shape family per category, flat colours;
         ``"v2"``: several real-product families per category with printed textures; see
         :mod:`ipbench.assets.objects`).
@@ -225,6 +231,13 @@ class SortingConfig:
         robot's beliefs, and the observation gains ``wrist_dist``/``head_*_dist`` (5,), the
         distortion the robot believes (zeros for ``nominal``).
     robot_seed : seed of the true cell's model errors (``nominal``/``calibrated`` only).
+    objects : how the objects are modelled
+        (:class:`~ipbench.assets.objects.object_model.ObjectModel`: collision geometry of
+        hollow objects, print orientation); the default is every released id's.
+    keep_area_after_failed_pick : when a pick of the object in the inspection area fails and
+        it is still there, the env keeps track of it, and the next command that needs an
+        object in hand tries the area again (``Sorting-v3``); otherwise (released ids) the env
+        forgets it and that command picks at the action's ``position``.
     calibration : path of a calibration file (``ipbench calibrate --robot-seed R``) for
         ``extrinsics="calibrated"``; None otherwise.
     """
@@ -242,6 +255,7 @@ class SortingConfig:
     undo_blowups: bool = True
     finger_armature: float | None = None
     bin_depth: float = BIN_INTERIOR[2]
+    bin_floor_backing: float = 0.0
     catalog: str = "v1"
     cameras: tuple[str, ...] = CAMERAS
     physics: PhysicsConfig = field(default_factory=PhysicsConfig)
@@ -249,6 +263,8 @@ class SortingConfig:
     extrinsics: str = "true"
     robot_seed: int = 0
     calibration: str | None = None
+    objects: ObjectModel = field(default_factory=ObjectModel)
+    keep_area_after_failed_pick: bool = False
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "cameras", _cameras(self.cameras))
@@ -276,6 +292,17 @@ product families, printed textures, train / similar / novel splits), structured-
 depth as the sensor makes it (projector shadow, disparity block matching, per-unit error),
 faster physics (:data:`~ipbench.envs.world.FAST_PHYSICS`: objects at rest sleep), and the
 :data:`PICK` command."""
+
+V3: dict = {
+    **V2,
+    "objects": ObjectModel(hollow_collision="convex", upright_prints=True),
+    "keep_area_after_failed_pick": True,
+    "bin_floor_backing": 0.04,
+}
+"""The settings ``Sorting-v3`` (under development) changes from v2: bowls and mugs collide as
+a few convex pieces each instead of rings of boxes, printed textures read upright, bin floors
+are thick enough that nothing dropped into a bin sticks in them, and the env
+keeps track of the object in the inspection area after a failed re-pick."""
 
 
 class SortingEnv(gym.Env):
@@ -377,7 +404,7 @@ class SortingEnv(gym.Env):
             self._registration = self._errors.registration_shift_px
             if self._unit is not None:
                 self._unit = replace(self._unit, shift_px=(0, 0))
-        spec = build_workcell_spec(self.config.bin_depth)
+        spec = build_workcell_spec(self.config.bin_depth, self.config.bin_floor_backing)
         if self.config.finger_armature is not None:
             for finger in ("a", "b"):
                 spec.joint(
@@ -385,7 +412,7 @@ class SortingEnv(gym.Env):
                 ).armature = self.config.finger_armature
         if self._knowledge is not None:  # the true cell (extrinsics "nominal"/"calibrated")
             apply_model_errors(spec, self._errors)
-        self.world = build_world(layout, spec, self.config.physics)
+        self.world = build_world(layout, spec, self.config.physics, self.config.objects)
         self.model = self.world.model
         self.data = mujoco.MjData(self.model)
         mujoco.mj_resetDataKeyframe(self.model, self.data, self.model.key("home").id)
@@ -523,13 +550,22 @@ class SortingEnv(gym.Env):
             if sk.holding:
                 return True
             jaws = opening
-            if self._area is not None:
-                target, grasp_yaw, jaws = self._area
+            area = self._area
+            if area is not None:
+                target, grasp_yaw, jaws = area
                 self._area = None
             elif self._view != "scene":
                 run(sk.look(places.scene_view, places.scene_target))
             self._jaws = jaws
-            return run(sk.pick(target, grasp_yaw, jaws))
+            picked = run(sk.pick(target, grasp_yaw, jaws))
+            if (
+                not picked
+                and area is not None
+                and self.config.keep_area_after_failed_pick
+                and "in_inspection_area" in self._all_statuses()
+            ):
+                self._area = area  # still there: the next command tries the area again
+            return picked
 
         name = self.commands[command]
         if name == PICK:

@@ -18,6 +18,7 @@ import numpy as np
 
 from ipbench.assets.compose import HEAD_SIDES, build_workcell_spec, head_gaze
 from ipbench.assets.objects import CATEGORIES, add_object
+from ipbench.assets.objects.object_model import RELEASED_MODEL, ObjectModel
 from ipbench.envs.layout import Layout
 
 __all__ = [
@@ -147,13 +148,17 @@ class World:
 
 
 def build_world(
-    layout: Layout, spec: mujoco.MjSpec | None = None, physics: PhysicsConfig | None = None
+    layout: Layout,
+    spec: mujoco.MjSpec | None = None,
+    physics: PhysicsConfig | None = None,
+    objects: ObjectModel = RELEASED_MODEL,
 ) -> World:
     """Compile the work cell with ``layout``'s objects (``spec``: a fresh work cell spec;
-    ``physics``: options on top of the MJCF, none by default)."""
+    ``physics``: options on top of the MJCF, none by default; ``objects``: how the objects are
+    modelled, the released ids' model by default)."""
     spec = spec if spec is not None else build_workcell_spec()
     for obj in layout.objects:
-        add_object(spec, obj.instance, obj.body, pos=obj.position, quat=obj.quat)
+        add_object(spec, obj.instance, obj.body, pos=obj.position, quat=obj.quat, model=objects)
     spec.add_key(name="home")
     model = spec.compile()
     places = Places.from_model(model)

@@ -35,6 +35,7 @@ __all__ = [
     "find_mode",
     "mc_softmax",
     "predictive_latent",
+    "predictive_mean",
     "psi",
     "se_kernel",
     "softmax",
@@ -253,7 +254,15 @@ def predictive_latent(
             cov[:, c, d] += x
             if d != c:
                 cov[:, d, c] += x
-    return Ks.T @ YmP, cov
+    return predictive_mean(Ks, YmP), cov
+
+
+def predictive_mean(Ks: np.ndarray, YmP: np.ndarray) -> np.ndarray:
+    """Latent predictive mean ``(m, C)``, ``mu*_c = k*^T (y_c - pi_c)`` (GPML Algorithm 3.4,
+    line 4), from the cross-covariances ``Ks`` (n, m) and ``YmP`` (n, C): what
+    :func:`predictive_latent` returns as its mean, without the covariance's ``C`` products
+    with the factor."""
+    return Ks.T @ YmP
 
 
 def mc_softmax(

@@ -6,11 +6,13 @@ RANSAC is not repeatable even with a seed; refined by least squares on its inlie
 while the plane is tilted) -> convex hull of the inliers in the plane's 2-D
 coordinates, extruded into a prism ``(min_height, prism_height]`` above the table -> Euclidean
 clustering of the voxels inside the prism (PCL's ``EuclideanClusterExtraction``: connected
-components of a scipy KD-tree radius graph, deterministic, equivalent to DBSCAN with
-``min_points=1``) -> size rules -> :class:`Segment` objects carrying *all* their points and
-pixels (labels go back from voxels to points). Foveated: :func:`segment_region` (a box such
-as the inspection area) and :func:`segment_in_hand` (the gripper's own points removed by its
-known geometry). :mod:`~ipbench.perception.segment_eval` scores segments against ground truth.
+components of the radius graph, deterministic, equivalent to DBSCAN with ``min_points=1``;
+found by a compiled grid and union-find, :mod:`._cluster_kernels`, which leaves the rare
+view with a pair within rounding of the tolerance to a scipy KD-tree) -> size rules ->
+:class:`Segment` objects carrying *all* their points and pixels (labels go back from voxels
+to points). Foveated: :func:`segment_region` (a box such as the inspection area) and
+:func:`segment_in_hand` (the gripper's own points removed by its known geometry).
+:mod:`~ipbench.perception.segment_eval` scores segments against ground truth.
 """
 
 from __future__ import annotations
@@ -25,7 +27,9 @@ from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 from scipy.spatial import ConvexHull, cKDTree
 
-from ._cloud_kernels import hand_keep
+from ._cloud_kernels import HULL_LIMIT as _HULL_LIMIT
+from ._cloud_kernels import hand_keep, hull_members
+from ._cluster_kernels import radius_components
 from .cloud import Cloud, PerceptionError, crop_box, voxel_grid
 
 __all__ = [
@@ -194,12 +198,20 @@ def _fit_plane(points: np.ndarray, config: SegmentationConfig) -> tuple[np.ndarr
     )
 
 
+def _cross(a, b) -> np.ndarray:
+    """``np.cross`` of two 3-vectors (3,) with numpy's operations (``a1 b2 - a2 b1``, ...: each
+    product rounded, then the difference), without its general-shape machinery."""
+    a0, a1, a2 = (float(v) for v in a)
+    b0, b1, b2 = (float(v) for v in b)
+    return np.array([a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0])
+
+
 def plane_basis(normal: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Two unit vectors (3,) spanning the plane of unit ``normal`` (3,), with ``normal`` a
     right-handed frame."""
-    e1 = np.cross(normal, [0.0, 1.0, 0.0] if abs(normal[0]) > 0.9 else [1.0, 0.0, 0.0])
+    e1 = _cross(normal, [0.0, 1.0, 0.0] if abs(normal[0]) > 0.9 else [1.0, 0.0, 0.0])
     e1 /= np.linalg.norm(e1)
-    return e1, np.cross(normal, e1)
+    return e1, _cross(normal, e1)
 
 
 def make_segment(points, pixels, up, offset: float | None) -> Segment:
@@ -214,7 +226,7 @@ def make_segment(points, pixels, up, offset: float | None) -> Segment:
     long = int(lengths[1] > lengths[0])
     axis2d = sides[long] / max(lengths[long], 1e-12)
     x = axis2d[0] * e1 + axis2d[1] * e2
-    rotation = np.column_stack([x, np.cross(up, x), up])
+    rotation = np.column_stack([x, _cross(up, x), up])
     heights = points @ up + (offset if offset is not None else 0.0)
     top = float(np.percentile(heights, 99))
     bottom = 0.0 if offset is not None else float(np.percentile(heights, 1))
@@ -231,6 +243,27 @@ def make_segment(points, pixels, up, offset: float | None) -> Segment:
     )
 
 
+def _components_by_tree(centres: np.ndarray, eps: float) -> np.ndarray:
+    """Connected components (V,) int32 of the graph joining the voxel ``centres`` (V, 3) at
+    most ``eps`` apart (m), numbered by smallest member: a kd-tree's pairs and scipy's
+    components, the reference that :func:`~._cluster_kernels.radius_components` gives
+    whenever it answers."""
+    pairs = cKDTree(centres).query_pairs(eps, output_type="ndarray")
+    graph = coo_matrix((np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])), (len(centres),) * 2)
+    return connected_components(graph, directed=False)[1]
+
+
+def _over_hull(points: np.ndarray, index: np.ndarray, e1, e2, equations) -> np.ndarray:
+    """Mask (M,) of ``points[index]`` whose plane coordinates ``(p . e1, p . e2)`` are in the
+    hull of facets ``equations`` (F, 3) within :data:`~._cloud_kernels.HULL_LIMIT` (m): the
+    compiled test, or numpy's expression for a point within rounding of the limit."""
+    decided, inside = hull_members(points, index, e1, e2, equations)
+    if decided:
+        return inside
+    flat = np.column_stack([points[index] @ e1, points[index] @ e2])
+    return np.all(flat @ equations[:, :2].T + equations[:, 2] <= _HULL_LIMIT, axis=1)
+
+
 def _cluster(
     cloud: Cloud, config: SegmentationConfig, up, offset, oversized: list | None = None
 ) -> list[Segment]:
@@ -239,9 +272,10 @@ def _cluster(
     if len(cloud) == 0:
         return []
     centres, voxel_of = voxel_grid(cloud.points, config.voxel_size)
-    pairs = cKDTree(centres).query_pairs(config.cluster_eps, output_type="ndarray")
-    graph = coo_matrix((np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])), (len(centres),) * 2)
-    labels = connected_components(graph, directed=False)[1][voxel_of]
+    labels = radius_components(centres, config.cluster_eps)
+    if labels is None:  # a pair at eps within rounding (or a huge grid): the kd-tree decides
+        labels = _components_by_tree(centres, config.cluster_eps)
+    labels = labels[voxel_of]
     order = np.argsort(labels, kind="stable")
     starts = np.flatnonzero(np.diff(labels[order], prepend=-1))
     segments = []
@@ -272,9 +306,8 @@ def _segment(cloud: Cloud, config: SegmentationConfig, plane) -> SceneSegmentati
             hull = ConvexHull(np.column_stack([hull_pts @ e1, hull_pts @ e2]))
         except Exception as err:  # degenerate (collinear) support
             raise PerceptionError(f"table hull is degenerate ({err}); valid: a 2-D table") from err
-        flat = np.column_stack([cloud.points[keep] @ e1, cloud.points[keep] @ e2])
-        inside = np.all(flat @ hull.equations[:, :2].T + hull.equations[:, 2] <= 1e-9, axis=1)
-        keep = keep[inside]
+        points = np.ascontiguousarray(cloud.points, dtype=np.float64)
+        keep = keep[_over_hull(points, keep, e1, e2, np.ascontiguousarray(hull.equations))]
     else:
         keep = keep[:0]
     oversized: list[Segment] = []

@@ -365,3 +365,15 @@ def test_the_verdict_sentence_reads_the_score_interval():
     assert "pile scene it costs (-5.0 points" in sentence
     assert "edge scene it is at the margin of measurable (+1.3 points [+0.0, +2.7]" in sentence
     assert verdict({}) == ""
+
+
+def test_a_run_on_an_id_under_development_says_so(results, tmp_path):
+    out = tmp_path / "docs"
+    report_docs(results, out)
+    assert "under development" not in (out / "index.md").read_text()  # a released id's run
+    run_json = results / "sorting" / "run.json"
+    run_json.write_text(
+        json.dumps({**json.loads(run_json.read_text()), "env_status": "under development"})
+    )
+    report_docs(results, out)
+    assert "(under development when the run was made" in (out / "index.md").read_text()

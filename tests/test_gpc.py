@@ -162,6 +162,46 @@ def test_state_round_trip_through_npz(separable, tmp_path) -> None:
     assert loaded.theta_ == model.theta_ and loaded.config == model.config
 
 
+def test_mode_predictive_is_the_softmax_of_the_latent_mean(separable) -> None:
+    model, Xt, _ = separable
+    mode = model.with_predictive("mode")
+    mean, _ = mode.predict_latent(Xt)
+    assert mode.predict_proba(Xt).tobytes() == softmax(mean).tobytes()
+
+
+def test_another_predictive_shares_the_fit_and_its_factor(separable, monkeypatch) -> None:
+    import json
+
+    import ipbench.perception.gpc as gpc_module
+
+    model, Xt, _ = separable
+    expected = {}
+    for predictive in ("mode", "mc"):
+        state = model.get_state()
+        config = {**json.loads(str(state["config_json"])), "predictive": predictive}
+        state["config_json"] = np.array(json.dumps(config))
+        loaded = MulticlassLaplaceGPC.from_state(state)
+        expected[predictive] = (*loaded.predict_latent(Xt), loaded.predict_proba(Xt), loaded)
+
+    def no_factorize(*_args, **_kwargs):
+        raise AssertionError("the factor was computed again for another predictive")
+
+    monkeypatch.setattr(gpc_module, "factorize", no_factorize)
+    mode = model.with_predictive("mode")
+    back = mode.with_predictive("mc")
+    for other, predictive in ((mode, "mode"), (back, "mc")):
+        mean, cov, proba, loaded = expected[predictive]
+        assert other.config == loaded.config and other.config.predictive == predictive
+        got = (*other.predict_latent(Xt), other.predict_proba(Xt))
+        for x, y in zip(got, (mean, cov, proba), strict=True):
+            assert x.tobytes() == y.tobytes()
+        assert other.n_lbfgs_evals_ == 0 and other.theta_ == loaded.theta_
+        assert other.log_marginal_likelihood() == loaded.log_marginal_likelihood()
+    assert model.config.predictive == "mc"  # the source model is unchanged
+    with pytest.raises(GPCError, match="predictive must be one of mc, mode"):
+        model.with_predictive("median")
+
+
 def test_fitting_improves_log_marginal_likelihood() -> None:
     X, y = blobs(12, 1.0, seed=9)
     model = MulticlassLaplaceGPC(GPCConfig(newton_tol=1e-9)).fit(X, y)

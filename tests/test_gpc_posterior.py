@@ -79,6 +79,19 @@ def test_an_existing_file_is_read_not_recomputed(fitted, tmp_path, monkeypatch):
     _assert_same(_predictions(again, Xt), _predictions(first, Xt))
 
 
+def test_another_predictive_predicts_from_the_same_file(fitted, tmp_path, monkeypatch):
+    model, Xt = fitted
+    mapped = MulticlassLaplaceGPC.from_state(model.get_state(), posterior=tmp_path / "gp")
+    monkeypatch.setattr(gpc_module, "factorize", _no_factorize)
+    mode = mapped.with_predictive("mode")
+    assert mode.posterior_file == mapped.posterior_file
+    mean, cov = mapped.predict_latent(Xt)
+    _assert_same(mode.predict_latent(Xt), (mean, cov))
+    clone = pickle.loads(pickle.dumps(mode))  # small: the file still carries the factor
+    assert clone.config.predictive == "mode" and clone.posterior_file == mapped.posterior_file
+    _assert_same(_predictions(clone, Xt), _predictions(mode, Xt))
+
+
 def test_another_model_never_reads_the_file(fitted, tmp_path):
     model, Xt = fitted
     X, y, _ = _data(1)

@@ -375,3 +375,17 @@ def test_real_inspection_area_segment_is_the_object_set_down():
     segment = segment_region(cloud, area.center + [0, 0, 0.15], area.half + [0.03, 0.03, 0.15])
     assert segment is not None
     assert match_segments([segment], info["wrist_mask"], depth > 0)["matches"] == {0: 1}
+
+
+def test_plane_basis_crosses_as_numpy():
+    from ipbench.perception.segmentation import _cross, plane_basis
+
+    rng = np.random.default_rng(4)
+    for a, b in zip(rng.normal(size=(200, 3)), rng.normal(size=(200, 3)), strict=True):
+        assert _cross(a, b).tobytes() == np.cross(a, b).tobytes()
+    normal = np.array([0.02, -0.01, 1.0]) / np.linalg.norm([0.02, -0.01, 1.0])
+    e1, e2 = plane_basis(normal)
+    reference = np.cross(normal, [1.0, 0.0, 0.0])
+    reference /= np.linalg.norm(reference)
+    assert e1.tobytes() == reference.tobytes()
+    assert e2.tobytes() == np.cross(normal, reference).tobytes()

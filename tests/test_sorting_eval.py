@@ -360,6 +360,7 @@ def test_threshold_option_sets_which_objects_are_inspected(tmp_path, prepared, t
     assert validated["threshold"] == fixture.threshold and not validated["used"]
     assert validated["rule"] == "logistic-precision" and "validation seeds" in validated["data"]
     assert run["dataset_version"] == DATASET_VERSION  # what the results pages stamp
+    assert run["env_status"] == "released"  # FAST runs a released id
 
 
 def test_thresholds_expand_each_confidence_driven_policy() -> None:

@@ -17,7 +17,8 @@ builders), :mod:`.primitives` (visual parts, collision primitives), :mod:`.v1_ge
 meshes and collision), :mod:`.geometry` (an instance's parts and inertia), :mod:`.poses`
 (resting poses), :mod:`.builder` (:func:`add_object`); v2: :mod:`.families` (families,
 sources, split rule), :mod:`.family_shapes`, :mod:`.family_samplers`, :mod:`.uv_meshes`,
-:mod:`.family_geometry` (UV-mapped, textured meshes), :mod:`.textures`.
+:mod:`.family_geometry` (UV-mapped, textured meshes), :mod:`.textures`; v3:
+:mod:`.convex_collision` (bowls and mugs as a few convex pieces each).
 """
 
 from ipbench.assets.objects.builder import (

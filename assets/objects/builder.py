@@ -24,6 +24,7 @@ import numpy as np
 from ipbench.assets.objects.catalog import ObjectCatalogError
 from ipbench.assets.objects.geometry import object_geometry
 from ipbench.assets.objects.instance import ObjectInstance
+from ipbench.assets.objects.object_model import RELEASED_MODEL, ObjectModel
 
 __all__ = [
     "add_object",
@@ -77,6 +78,7 @@ def add_object(
     name: str,
     pos: Sequence[float] = (0.0, 0.0, 0.0),
     quat: Sequence[float] = (1.0, 0.0, 0.0, 0.0),
+    model: ObjectModel = RELEASED_MODEL,
 ) -> mujoco.MjsBody:
     """Add ``inst`` to ``spec.worldbody`` as a free body called ``name``.
 
@@ -88,6 +90,8 @@ def add_object(
         joint is ``f"{name}_freejoint"``.
     pos : (3,) world position of the object frame (bottom centre), m.
     quat : (4,) world orientation (w, x, y, z).
+    model : how the instance is modelled (collision geometry of hollow objects, print
+        orientation); the default is the released ids' model.
 
     Returns
     -------
@@ -102,7 +106,7 @@ def add_object(
         raise ObjectCatalogError(f"inst must be an ObjectInstance, got {type(inst).__name__}")
     if not name or spec.body(name) is not None:
         raise ObjectCatalogError(f"body name {name!r} is empty or already used in the spec")
-    geo = object_geometry(inst)
+    geo = object_geometry(inst, model)
     body = spec.worldbody.add_body(name=name, pos=list(pos), quat=list(quat))
     body.add_freejoint(name=f"{name}_freejoint")
     body.explicitinertial = True

@@ -8,6 +8,15 @@ and gives each textured role its procedural texture
 
 Texture sizes (H x W): labels 128 x 256, glass and glaze 128 x 128, carton and box prints
 256 x 256 — at most 0.2 MB of texture per instance.
+
+Print orientation: a texture's row 0 is the top of its print and its column 0 is u = 0
+(:mod:`~ipbench.assets.objects.textures`), and MuJoCo puts row 0 at v = 0. On a lofted or
+lathed part v grows with height (rings bottom to top, :mod:`~ipbench.assets.objects.uv_meshes`)
+while u runs to the right seen from outside, so the released mapping shows every print mirrored
+top to bottom (text in reading order but each line upside down, a picture's sun under its
+hills). ``upright_prints`` maps v to 1 - v on every textured part whose v grows with height
+(:func:`_upright_texcoords`), which turns the print upright without mirroring it; the images
+themselves are the same under both mappings.
 """
 
 from __future__ import annotations
@@ -282,10 +291,21 @@ def _texture(inst: ObjectInstance, kind: str) -> np.ndarray:
     return np.ascontiguousarray(make_texture(kind, seed, base, accent, TEXTURE_SIZES[kind]))
 
 
+def _upright_texcoords(vertices: np.ndarray, uv: np.ndarray) -> np.ndarray:
+    """Texture coordinates (N, 2) that put a print's row 0 (its top) at the top of the part:
+    ``uv`` with v mapped to 1 - v where v grows with height (``vertices`` (N, 3) m), else
+    ``uv`` as it is (a mug handle's v already runs down from its top)."""
+    v, z = uv[:, 1], vertices[:, 2]
+    if np.mean((v - v.mean()) * (z - z.mean())) <= 0:
+        return uv
+    return np.column_stack([uv[:, 0], 1.0 - v])
+
+
 def family_parts(
-    inst: ObjectInstance,
+    inst: ObjectInstance, upright_prints: bool = False
 ) -> tuple[tuple[prim.VisualPart, ...], tuple[prim.Primitive, ...]]:
-    """Visual parts (with textures) and collision primitives of a v2 instance."""
+    """Visual parts (with textures) and collision primitives of a v2 instance
+    (``upright_prints``: see :class:`~ipbench.assets.objects.object_model.ObjectModel`)."""
     parts, collision = _parts(inst.shape, inst.family)
     if collision is None:  # round bottles: the v1 hull
         collision = v1._bottle(inst.shape, inst)[1]
@@ -299,7 +319,8 @@ def family_parts(
             continue
         if kind not in textures:
             textures[kind] = _texture(inst, kind)
-        visual.append(
-            prim.VisualPart(suffix, v, f, rgba, shiny, np.asarray(uv, float), textures[kind])
-        )
+        uv = np.asarray(uv, float)
+        if upright_prints:
+            uv = _upright_texcoords(np.asarray(v, float), uv)
+        visual.append(prim.VisualPart(suffix, v, f, rgba, shiny, uv, textures[kind]))
     return tuple(visual), tuple(collision)

@@ -14,8 +14,10 @@ from functools import cache
 import numpy as np
 
 from ipbench.assets.objects import meshes
+from ipbench.assets.objects.convex_collision import convex_collision
 from ipbench.assets.objects.family_geometry import family_parts
 from ipbench.assets.objects.instance import ObjectInstance
+from ipbench.assets.objects.object_model import RELEASED_MODEL, ObjectModel
 from ipbench.assets.objects.primitives import Primitive, VisualPart
 from ipbench.assets.objects.v1_geometry import v1_parts
 
@@ -68,15 +70,19 @@ def _inertia(prims: tuple[Primitive, ...], mass: float) -> tuple[np.ndarray, np.
 
 
 @cache
-def object_geometry(inst: ObjectInstance) -> ObjectGeometry:
-    """Visual parts, collision primitives and inertia of ``inst`` (cached per instance).
+def object_geometry(inst: ObjectInstance, model: ObjectModel = RELEASED_MODEL) -> ObjectGeometry:
+    """Visual parts, collision primitives and inertia of ``inst`` under ``model`` (cached).
 
-    The inertia assumes the collision primitives filled with uniform (relative) density,
-    scaled so that the mass is exactly ``inst.mass``.
+    The inertia assumes the thin-wall collision primitives of the released model filled with
+    uniform (relative) density, scaled so that the mass is exactly ``inst.mass``; it is the
+    same under every :class:`~ipbench.assets.objects.object_model.ObjectModel` (a model changes
+    how an object collides and looks, not how it is built).
     """
     if inst.catalog == "v1":
         visual, collision = v1_parts(inst)
     else:
-        visual, collision = family_parts(inst)
+        visual, collision = family_parts(inst, upright_prints=model.upright_prints)
     com, inertia = _inertia(collision, inst.mass)
+    if model.hollow_collision == "convex":
+        collision = convex_collision(inst, collision)
     return ObjectGeometry(tuple(visual), tuple(collision), com, inertia)

@@ -1,4 +1,4 @@
-"""``ipbench bench eval``: sorting episodes per minute, 1 and 2 workers, and v1 vs v2 episodes.
+"""``ipbench bench eval``: sorting episodes per minute, 1 and 2 workers, and v1, v2, v3 episodes.
 
 Each rate runs ``episodes`` cluttered episodes (seeds 0, 1, ...) of one policy on the
 benchmark's id (:data:`ipbench.envs.LATEST`, with the models trained on its views: what
@@ -13,10 +13,10 @@ benchmark's id (:data:`ipbench.envs.LATEST`, with the models trained on its view
   and ``busy_2_workers``, the share of the 2-worker run's wall time x 2 that the workers spent
   in episodes (the rest: starting the pool, loading models, waiting on the last long episode).
   ``speedup_2_workers`` ~= 2 x ``busy_2_workers`` / ``slowdown_2_workers``;
-- ``episode_s_v1``, ``episode_s_v2``: mean wall seconds of the same cluttered ``oracle``
-  episodes (true labels: no threshold, the same segmentation and grasping code) on
-  ``ipbench/Sorting-v1`` and ``ipbench/Sorting-v2``, one worker, measured
-  one after the other in this run; ``episode_speedup_v2`` = v1 / v2.
+- ``episode_s_v1``, ``episode_s_v2``, ``episode_s_v3``: mean wall seconds of the same
+  cluttered ``oracle`` episodes (true labels: no threshold, the same segmentation and grasping
+  code) on ``ipbench/Sorting-v1``, ``-v2`` and ``-v3``, one worker, measured one after the
+  other in this run; ``episode_speedup_v2`` = v1 / v2 and ``episode_speedup_v3`` = v2 / v3.
 """
 
 from __future__ import annotations
@@ -37,7 +37,7 @@ from ipbench.eval.sorting.evaluate import (
 
 __all__ = ["bench_eval", "check_bench_eval"]
 
-_V1, _V2 = "ipbench/Sorting-v1", "ipbench/Sorting-v2"
+_VERSIONS = {"v1": "ipbench/Sorting-v1", "v2": "ipbench/Sorting-v2", "v3": "ipbench/Sorting-v3"}
 
 
 def check_bench_eval(policies: tuple[str, ...], episodes: int) -> SortingEvalConfig:
@@ -104,9 +104,10 @@ def bench_eval(
     )
     figures["slowdown_2_workers"] = round(inside[2] / inside[1], 3)
     oracle = [Task("cluttered", "oracle", seed) for seed in seeds]
-    for tag, env_id in (("v1", _V1), ("v2", _V2)):
+    for tag, env_id in _VERSIONS.items():
         config = _with_env(replace(base, policies=("oracle",), workers=1), env_id)
         minutes, _ = _run(config, oracle, models)
         figures[f"episode_s_{tag}"] = round(60.0 * minutes / episodes, 2)
     figures["episode_speedup_v2"] = round(figures["episode_s_v1"] / figures["episode_s_v2"], 2)
+    figures["episode_speedup_v3"] = round(figures["episode_s_v2"] / figures["episode_s_v3"], 2)
     return figures

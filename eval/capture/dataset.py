@@ -240,7 +240,7 @@ def render_instance_views(inst: ObjectInstance, config: DatasetConfig) -> ViewSe
     placed = PlacedObject(
         0, inst, poses[0], tuple(center + [0, 0, poses[0].height]), 0.0, poses[0].quat
     )
-    world = build_world(Layout("isolated", 0, (placed,)))
+    world = build_world(Layout("isolated", 0, (placed,)), objects=env_config(config.env_id).objects)
     places = world.places
     model = world.model
     data = mujoco.MjData(model)

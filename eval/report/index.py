@@ -63,6 +63,12 @@ def threshold_text(run: Mapping) -> str:
     return "; ".join(parts) or "none (no confidence-driven policy)"
 
 
+_UNDER_DEVELOPMENT = {
+    "under development": " (under development when the run was made: its behaviour may still "
+    "change until its release, so these figures are not the released id's)"
+}
+
+
 def _sorting_items(run: Run) -> list[str]:
     info = run.json("run.json") or {}
     config = info.get("config", {})
@@ -71,7 +77,8 @@ def _sorting_items(run: Run) -> list[str]:
     fixed = [p for p in config.get("policies", []) if "@" in p]
     items = [
         f"Command: `{sorting_command(run)}`",
-        f"Environment: `{perception.get('dataset', {}).get('env_id', 'not recorded')}`",
+        f"Environment: `{perception.get('dataset', {}).get('env_id', 'not recorded')}`"
+        + _UNDER_DEVELOPMENT.get(info.get("env_status"), ""),
         f"Policy code version: {info.get('policy_version', 'not recorded')} "
         "(`ipbench.policies.POLICY_VERSION`)",
         f"Scenes: {', '.join(config.get('scenes', []))}; policies: "

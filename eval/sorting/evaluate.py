@@ -34,6 +34,7 @@ from tqdm import tqdm
 
 import ipbench.envs  # noqa: F401  (registers the environments)
 from ipbench.assets.objects import CATEGORIES
+from ipbench.envs import env_status
 from ipbench.envs.sorting import workcell_places
 from ipbench.envs.sorting_scenes import SCENES, STANDARD_SCENES
 from ipbench.eval.capture.dataset import DATASET_VERSION
@@ -561,6 +562,7 @@ def run_sorting_eval(
             "model_keys": keys,
             "perception_key": model_key(config.perception, CATEGORIES),
             "dataset_version": DATASET_VERSION,
+            "env_status": env_status(config.perception.dataset.env_id),
             "config": asdict(config),
         },
         _record_key,
