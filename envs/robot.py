@@ -8,7 +8,7 @@ value of the joint in the MJCF), is streamed to the actuators at every physics s
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from functools import lru_cache
 
@@ -254,6 +254,54 @@ class RobotController:
         """Execute an IK solution (its moving joints only); ``stop``: see :meth:`move_joints`."""
         targets = dict(zip(result.joints, result.qpos, strict=True))
         return self.move_joints(targets, speed_fraction, stop)
+
+    def move_path(
+        self,
+        path: Sequence[IKResult],
+        speed_fraction: float | None = None,
+        stop: Callable[[], bool] | None = None,
+        min_duration: float | None = None,
+    ) -> float:
+        """Drive the joints through the waypoints ``path`` (IK solutions for the same joints)
+        in one motion lasting at least ``min_duration`` (s); returns the sim time (s).
+
+        The joint targets run along the polyline from the current targets through the
+        waypoints, timed by one quintic in the path parameter, and the duration is the one
+        :meth:`move_joints` gives the polyline's summed per-joint lengths (so no joint exceeds
+        ``speed_fraction`` of its maximum speed). Closely spaced waypoints of a Cartesian
+        line make the TCP follow that line, as a controller's linear move does. ``stop``:
+        see :meth:`move_joints`.
+        """
+        if not path:
+            return 0.0
+        frac = self.config.speed_fraction if speed_fraction is None else speed_fraction
+        names = list(path[0].joints)
+        acts = [self._joint[n][2] for n in names]
+        points = np.array([[self.data.ctrl[a] for a in acts]] + [r.qpos for r in path])
+        vmax = np.array([self._joint[n][3] for n in names]) * frac
+        seconds = np.max(np.abs(np.diff(points, axis=0)) / vmax, axis=1)  # (n,) per segment
+        knots = np.concatenate([[0.0], np.cumsum(seconds)])
+        duration = max(self.config.min_duration, min_duration or 0.0, 1.875 * float(knots[-1]))
+        dt = self.model.opt.timestep
+        n_steps = int(np.ceil(duration / dt))
+        t0 = self.data.time
+        for k in range(1, n_steps + 1):
+            s = k / n_steps
+            u = knots[-1] * s**3 * (10 - 15 * s + 6 * s * s)
+            i = min(int(np.searchsorted(knots, u, side="right")) - 1, len(seconds) - 1)
+            w = 0.0 if seconds[i] == 0 else (u - knots[i]) / seconds[i]
+            self.data.ctrl[acts] = points[i] + (points[i + 1] - points[i]) * min(w, 1.0)
+            self._step()
+            if stop is not None and stop():
+                self.data.ctrl[acts] = [self.data.qpos[self._joint[n][0]] for n in names]
+                return self.data.time - t0
+        goal = points[-1]
+        qadr = [self._joint[n][0] for n in names]
+        for _ in range(int(self.config.settle_timeout / dt)):
+            if np.max(np.abs(self.data.qpos[qadr] - goal)) < self.config.settle_tolerance:
+                break
+            self._step()
+        return self.data.time - t0
 
     def hold(self, duration: float) -> None:
         """Let the physics run for ``duration`` s with the current targets."""

@@ -4,8 +4,18 @@
 the jaws turned to a yaw; ``place_in_bin``, ``place_in_inspection_area`` and
 ``present_in_hand`` act on the object in hand. Grasps are physical: the gripper closes under a
 force limit and only contact and friction hold the object. Every skill returns a
-:class:`SkillResult`; a failed grasp or an unreachable pose is a reported outcome, never
-retried silently.
+:class:`SkillResult`; a failed grasp or an unreachable pose is a reported outcome.
+
+``Sorting-v3``'s pick (:data:`V3_SKILLS`) comes down and goes up on straight vertical lines at
+a reduced speed, from a little above the transit height, and reacts to what the arm senses
+while grasping, as a robot with a wrist force/torque sensor
+(:mod:`ipbench.envs.grasp_sensing`) and pad contact sensing would: a finger that lands on
+something well above the grasp height is moved in and the descent tried again; jaws stopped
+by something a pad does not touch close again higher; and a load that hangs off the jaws'
+centre is set down and grasped again through its centre of mass. Each is a
+:class:`~ipbench.envs.skill_config.SkillConfig` field whose default is the released pick.
+The skills plan from the commanded pose, the joint encoders, the wrist wrench and the pads'
+contacts only, never from an object's pose in the simulation.
 """
 
 from __future__ import annotations
@@ -16,51 +26,16 @@ import mujoco
 import numpy as np
 
 from ipbench.assets.compose import GRIPPER_ARM
+from ipbench.envs.grasp_sensing import contact_wrench, load_offset
 from ipbench.envs.ik import look_at_rotation, tool_down_rotation
 from ipbench.envs.robot import PlanningError, RobotController
+from ipbench.envs.skill_config import V3_SKILLS, SkillConfig
 from ipbench.envs.world import Places
 
-__all__ = ["SkillConfig", "SkillResult", "Skills"]
+__all__ = ["SkillConfig", "SkillResult", "Skills", "V3_SKILLS"]
 
 
-@dataclass(frozen=True)
-class SkillConfig:
-    """Geometry and timing of the skills (m, s).
-
-    Attributes
-    ----------
-    transit_height : TCP height above the table for moves with an empty gripper (clears the
-        tallest object, 0.29 m, with the pads below the TCP).
-    carry_clearance : while carrying, the held object's bottom stays this high above the
-        table (so it passes over the other objects) where the arm can reach that high.
-    min_grasp_height : lowest TCP height above the table (the pads are 6 cm tall).
-    grasp_depth : how far below the reported position the TCP goes (grasping a segment's
-        centroid a little lower holds tall objects better), clamped by ``min_grasp_height``.
-    open_width, close_time, release_time : gripper half-opening (m) and waiting times (the
-        close time counts from when the closing fingers' target reaches zero).
-    finger_speed : how fast each finger's target moves when closing (m/s; 0.1 closes the
-        jaws at 0.2 m/s, an electric parallel gripper's speed): fingers that slam shut on an
-        object would launch light neighbours. ``None`` steps the target shut at once
-        (``Sorting-v0``).
-    min_held_width : a grasp holds something only if the jaws stay at least this far apart.
-    bin_release_clearance : height of the held object's bottom above the bin rim at release.
-    min_opening : narrowest jaw opening a pick pre-shapes to (m, full opening).
-    guard_force : a pick's descent stops where the contact force on the gripper exceeds this
-        (N), as a robot with a wrist force sensor would; ``None`` descends blind.
-    """
-
-    transit_height: float = 0.36
-    carry_clearance: float = 0.31
-    min_grasp_height: float = 0.04
-    grasp_depth: float = 0.02
-    open_width: float = 0.105
-    close_time: float = 0.3
-    finger_speed: float | None = 0.1
-    release_time: float = 0.35
-    min_held_width: float = 0.004
-    bin_release_clearance: float = 0.10
-    min_opening: float = 0.03
-    guard_force: float | None = 20.0
+_RELEASED = SkillConfig()
 
 
 @dataclass(frozen=True)
@@ -76,7 +51,7 @@ class SkillResult:
 class Skills:
     """Skills of the CloPeMa robot in one simulated work cell."""
 
-    def __init__(self, robot: RobotController, places: Places, config: SkillConfig = SkillConfig()):
+    def __init__(self, robot: RobotController, places: Places, config: SkillConfig = _RELEASED):
         self.robot, self.places, self.config = robot, places, config
         model = robot.model
         self.grasp_actuator = model.actuator(f"{GRIPPER_ARM}_gripper_grasp").id
@@ -140,7 +115,8 @@ class Skills:
             self.robot.hold(dt)
         self._gripper(0.0, self.config.close_time)
 
-    def _pads_touch_object(self) -> bool:
+    def _pad_touches(self) -> list[bool]:
+        """Whether each pad touches a free object (the pads' contact sensing)."""
         data = self.robot.data
         touched = [False, False]
         for c in data.contact[: data.ncon]:
@@ -148,7 +124,10 @@ class Skills:
                 other = c.geom2 if c.geom1 == pad else c.geom1 if c.geom2 == pad else -1
                 if other >= 0 and self._free_geoms[other]:
                     touched[k] = True
-        return all(touched)
+        return touched
+
+    def _pads_touch_object(self) -> bool:
+        return all(self._pad_touches())
 
     def gripper_contact_force(self) -> float:
         """Total normal contact force (N) between the gripper and anything else."""
@@ -200,6 +179,16 @@ class Skills:
             lift = max(lift, self.grasp_height + self.config.carry_clearance)
         return self.places.table_height + lift
 
+    def _approach_pose(self, xy, yaw: float):
+        """A pick's transit pose over ``xy``: ``approach_rise`` above the transit height where
+        the arm reaches that high, else at it. Raises PlanningError."""
+        if self.config.approach_rise is not None:
+            try:
+                return self.tool_pose(xy, self._transit_z() + self.config.approach_rise, yaw)
+            except PlanningError:
+                pass
+        return self.tool_pose(xy, self._transit_z(), yaw)
+
     # -- skills ----------------------------------------------------------------------------
     def look(self, eye: np.ndarray, target: np.ndarray, name: str = "look") -> SkillResult:
         """Move the wrist camera to ``eye`` (3,) looking at ``target`` (3,) (world, m)."""
@@ -218,7 +207,9 @@ class Skills:
         pre-shaped to ``opening`` (m, full jaw opening; None: fully open).
 
         The descent is guarded (:attr:`SkillConfig.guard_force`): where a jaw lands on
-        something the arm stops and the jaws close there.
+        something the arm stops and the jaws close there. With :data:`V3_SKILLS` the descent
+        and the lift are straight, and the pick retries and regrasps from what it senses (see
+        the module docstring).
         """
         t0 = self._t()
         if self.holding:
@@ -227,22 +218,35 @@ class Skills:
         table = self.places.table_height
         z = max(float(position[2]) - self.config.grasp_depth, table + self.config.min_grasp_height)
         try:
-            above = self.tool_pose(position, self._transit_z(), yaw)
+            above = self._approach_pose(position, yaw)
             grasp = self.tool_pose(position, z, yaw, q0=above.q)
         except PlanningError as err:
             return SkillResult("pick", False, f"unreachable: {err}", 0.0)
         half = self.config.open_width
         if opening is not None:
             half = float(np.clip(opening / 2, self.config.min_opening / 2, half))
-        self._gripper(half, 0.0)
-        self.robot.move_to(above)
-        self.robot.move_to(grasp, speed_fraction=0.25, stop=self._touched)
+        if self.config.approach_rise is None:
+            self._gripper(half, 0.0)
+            self.robot.move_to(above)
+        else:  # pre-shape over the target, not where the arm comes from (over a bin)
+            self.robot.move_to(above)
+            self._gripper(half, 0.0)
+        self._descend(position, z, yaw, above, grasp)
+        if self.config.early_contact is not None:
+            position, half = self._descend_again(position, z, yaw, half)
         self.grasp_yaw = yaw
         # where the TCP stopped (a guarded descent can stop above the planned height)
         reached = self.robot.data.site_xpos[self._tcp][2] if self.config.guard_force else z
         self.grasp_height = float(reached) - table
         self._close()
-        self._retreat()
+        if self.config.rim_regrasp is not None:
+            self._close_higher(position, yaw, half)
+        if self.config.balance_lift is not None:
+            self._balance(yaw, half)
+        if self.config.line_step is None:
+            self._retreat()
+        else:
+            self._lift_straight()
         self.holding = self.is_holding()
         if not self.holding:
             self._gripper(self.config.open_width, 0.1)
@@ -250,6 +254,148 @@ class Skills:
                 "pick", False, "grasp failed: nothing held after lifting", self._t() - t0
             )
         return SkillResult("pick", True, "", self._t() - t0)
+
+    # -- straight moves and sensed corrections of a pick (Sorting-v3) ---------------------------
+    def _vertical_path(
+        self, xy, z_from: float, z_to: float, yaw: float, q0: np.ndarray, partial: bool = False
+    ) -> list:
+        """IK waypoints (``line_step`` apart, ``z_to`` last) of the TCP's vertical line over
+        ``xy`` from ``z_from``, each solved from the previous one. Raises PlanningError, or
+        with ``partial`` returns the waypoints up to the first unreachable one."""
+        n = max(1, int(np.ceil(abs(z_to - z_from) / self.config.line_step)))
+        path = []
+        for k in range(1, n + 1):
+            try:
+                step = self.tool_pose(xy, z_from + (z_to - z_from) * k / n, yaw, q0)
+            except PlanningError:
+                if partial:
+                    break
+                raise
+            path.append(step)
+            q0 = step.q
+        return path
+
+    def _descend(self, position, z: float, yaw: float, above, grasp) -> None:
+        """The guarded descent from ``above`` to ``grasp`` (TCP height ``z``): a vertical line
+        with ``line_step``, else one joint-space move."""
+        if self.config.line_step is not None:
+            start = self.robot.gripper_ik.site_pose(above.q)[0][2]
+            try:
+                path = self._vertical_path(position[:2], start, z, yaw, above.q)
+            except PlanningError:
+                path = None
+            if path is not None:
+                seconds = 1.875 * abs(start - z) / self.config.line_speed  # quintic peak
+                self.robot.move_path(path, 0.25, stop=self._touched, min_duration=seconds)
+                return
+        self.robot.move_to(grasp, speed_fraction=0.25, stop=self._touched)
+
+    def _lift_straight(self, top: float | None = None) -> None:
+        """Straight up from where the TCP is to ``top`` (world z, m), by default the height a
+        carry starts from (the held object's bottom ``carry_clearance`` above the table, at
+        least the transit height), or as high as the arm reaches over here: the next move
+        then sets off above the others."""
+        q = self.robot.kinematic_state()
+        pos, _ = self.robot.gripper_ik.site_pose(q)
+        cfg = self.config
+        if top is None:
+            lift = max(cfg.transit_height, self.grasp_height + cfg.carry_clearance)
+            top = self.places.table_height + lift
+        top = max(pos[2], top)
+        path = self._vertical_path(pos[:2], pos[2], top, self.grasp_yaw, q, partial=True)
+        if not path:
+            self._retreat()
+            return
+        end = self.robot.gripper_ik.site_pose(path[-1].q)[0][2]
+        self.robot.move_path(path, min_duration=1.875 * (end - pos[2]) / cfg.line_speed)
+
+    def _wrench_offset(self) -> tuple[float, np.ndarray | None]:
+        """The wrist wrench's vertical force (N, + pushes the gripper up) and the horizontal
+        offset (3,) of its load from the TCP (m; None under ``min_load``)."""
+        tcp = self.robot.data.site_xpos[self._tcp].copy()
+        wrench = contact_wrench(self.robot.model, self.robot.data, self._gripper_geom, tcp)
+        return float(wrench.force[2]), load_offset(wrench, self.config.min_load)
+
+    def _descend_again(self, position, z: float, yaw: float, half: float):
+        """After a descent that stopped more than ``early_contact`` above the planned TCP
+        height ``z``: the finger under the wrench's centre of pressure moves in by
+        ``finger_inset`` (the TCP shifts half of it away, the jaws narrow by half of it, the
+        other finger stays) and the descent starts again from the transit height. Returns the
+        grasp's position and half-opening."""
+        cfg = self.config
+        closing = np.array([np.cos(yaw), np.sin(yaw)])
+        for _ in range(cfg.contact_retries):
+            if self.robot.data.site_xpos[self._tcp][2] - z <= cfg.early_contact:
+                break
+            force_z, offset = self._wrench_offset()
+            narrower = half - cfg.finger_inset / 2
+            if offset is None or force_z <= 0 or narrower < cfg.min_opening / 2:
+                break
+            side = float(offset[:2] @ closing)
+            if abs(abs(side) - half) > cfg.finger_inset:
+                break  # not under a finger (the pad's face to the finger's outer face): the palm
+            xy = np.asarray(position[:2], float) - np.sign(side) * cfg.finger_inset / 2 * closing
+            try:
+                above = self._approach_pose(xy, yaw)
+                grasp = self.tool_pose(xy, z, yaw, q0=above.q)
+            except PlanningError:
+                break
+            position, half = np.array([xy[0], xy[1], position[2]]), narrower
+            self.robot.move_to(above)
+            self._gripper(half, 0.0)
+            self._descend(position, z, yaw, above, grasp)
+        return position, half
+
+    def _close_higher(self, position, yaw: float, half: float) -> None:
+        """Jaws stopped by something a pad does not touch (it is wider above that pad, as a
+        bowl's flared rim that meets the finger): open, rise by ``rim_regrasp`` and close
+        again there."""
+        if self.robot.data.qpos[self._finger] <= self.config.min_held_width:
+            return
+        if all(self._pad_touches()):
+            return
+        z = float(self.robot.data.site_xpos[self._tcp][2]) + self.config.rim_regrasp
+        try:
+            higher = self.tool_pose(position[:2], z, yaw, self.robot.kinematic_state())
+        except PlanningError:
+            return
+        self._gripper(half, self.config.release_time)
+        self.robot.move_to(higher, speed_fraction=0.25)
+        self.grasp_height = z - self.places.table_height
+        self._close()
+
+    def _balance(self, yaw: float, half: float) -> None:
+        """Lift ``balance_lift`` slowly, read the load's centre of mass from the wrist wrench
+        and, if it hangs more than ``com_tolerance`` off the TCP along the jaws' width, set the
+        load down, open, move the TCP over it, close and lift slowly again (once)."""
+        cfg = self.config
+        q = self.robot.kinematic_state()
+        pos, _ = self.robot.gripper_ik.site_pose(q)
+        width = tool_down_rotation(yaw)[:, 1]  # the jaws' width direction (horizontal)
+        try:
+            up = self.tool_pose(pos[:2], pos[2] + cfg.balance_lift, yaw, q)
+        except PlanningError:
+            return
+        self.robot.move_to(up, speed_fraction=0.25)
+        self.robot.hold(cfg.balance_time)
+        force_z, offset = self._wrench_offset()
+        if offset is None or force_z >= 0:
+            return  # nothing hangs from the jaws
+        shift = float(offset @ width)
+        if abs(shift) <= cfg.com_tolerance:
+            return
+        xy = pos[:2] + shift * width[:2]
+        try:
+            down = self.tool_pose(pos[:2], pos[2], yaw, up.q)
+            over = self.tool_pose(xy, pos[2], yaw, down.q)
+            up = self.tool_pose(xy, pos[2] + cfg.balance_lift, yaw, over.q)
+        except PlanningError:
+            return
+        self.robot.move_to(down, speed_fraction=0.25)
+        self._gripper(half, cfg.release_time)
+        self.robot.move_to(over, speed_fraction=0.25)
+        self._close()
+        self.robot.move_to(up, speed_fraction=0.25)
 
     def _set_down(self, name: str, xy, z: float, yaw: float, above_z: float) -> SkillResult:
         """Carry the object in hand over ``xy`` at ``above_z``, lower the TCP to ``z`` with the

@@ -81,7 +81,7 @@ from ipbench.envs.sensors.depth_noise import STRUCTURED_LIGHT, DepthNoiseConfig,
 from ipbench.envs.sensors.lens_distortion import distort_image
 from ipbench.envs.sensors.structured_light import UnitError, apply_unit
 from ipbench.envs.settling import settle_gently
-from ipbench.envs.skills import SkillConfig, SkillResult, Skills
+from ipbench.envs.skills import V3_SKILLS, SkillConfig, SkillResult, Skills
 from ipbench.envs.sorting_scenes import SCENES, scenes_for
 from ipbench.envs.sorting_spaces import action_space, check_action, observation_space
 from ipbench.envs.world import (
@@ -298,8 +298,11 @@ V3: dict = {
     "objects": ObjectModel(hollow_collision="convex", upright_prints=True),
     "keep_area_after_failed_pick": True,
     "bin_floor_backing": 0.04,
+    "skills": V3_SKILLS,
 }
-"""The settings ``Sorting-v3`` (under development) changes from v2: bowls and mugs collide as
+"""The settings ``Sorting-v3`` (under development) changes from v2: picks that descend and lift
+on straight lines and correct themselves from what the arm senses
+(:data:`~ipbench.envs.skills.V3_SKILLS`), bowls and mugs collide as
 a few convex pieces each instead of rings of boxes, printed textures read upright, bin floors
 are thick enough that nothing dropped into a bin sticks in them, and the env
 keeps track of the object in the inspection area after a failed re-pick."""
