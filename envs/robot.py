@@ -227,13 +227,29 @@ class RobotController:
         vmax = np.array([self._joint[n][3] for n in names]) * frac
         # A quintic's peak speed is 15/8 of the mean speed.
         duration = max(self.config.min_duration, float(np.max(1.875 * np.abs(goal - start) / vmax)))
+
+        def target(s: float) -> np.ndarray:
+            return start + (goal - start) * (s**3 * (10 - 15 * s + 6 * s * s))
+
+        return self._drive(names, duration, target, goal, stop)
+
+    def _drive(
+        self,
+        names: list[str],
+        duration: float,
+        target: Callable[[float], np.ndarray],
+        goal: np.ndarray,
+        stop: Callable[[], bool] | None,
+    ) -> float:
+        """Set the named joints' servo targets to ``target(s)``, s from 0 to 1 over
+        ``duration`` (s) of physics steps, then wait for them to settle at ``goal``; ``stop``:
+        see :meth:`move_joints`. Returns the sim time (s)."""
+        acts = [self._joint[n][2] for n in names]
         dt = self.model.opt.timestep
         n_steps = int(np.ceil(duration / dt))
         t0 = self.data.time
         for k in range(1, n_steps + 1):
-            s = k / n_steps
-            blend = s**3 * (10 - 15 * s + 6 * s * s)
-            self.data.ctrl[acts] = start + (goal - start) * blend
+            self.data.ctrl[acts] = target(k / n_steps)
             self._step()
             if stop is not None and stop():
                 self.data.ctrl[acts] = [self.data.qpos[self._joint[n][0]] for n in names]
@@ -282,26 +298,14 @@ class RobotController:
         seconds = np.max(np.abs(np.diff(points, axis=0)) / vmax, axis=1)  # (n,) per segment
         knots = np.concatenate([[0.0], np.cumsum(seconds)])
         duration = max(self.config.min_duration, min_duration or 0.0, 1.875 * float(knots[-1]))
-        dt = self.model.opt.timestep
-        n_steps = int(np.ceil(duration / dt))
-        t0 = self.data.time
-        for k in range(1, n_steps + 1):
-            s = k / n_steps
+
+        def target(s: float) -> np.ndarray:
             u = knots[-1] * s**3 * (10 - 15 * s + 6 * s * s)
             i = min(int(np.searchsorted(knots, u, side="right")) - 1, len(seconds) - 1)
             w = 0.0 if seconds[i] == 0 else (u - knots[i]) / seconds[i]
-            self.data.ctrl[acts] = points[i] + (points[i + 1] - points[i]) * min(w, 1.0)
-            self._step()
-            if stop is not None and stop():
-                self.data.ctrl[acts] = [self.data.qpos[self._joint[n][0]] for n in names]
-                return self.data.time - t0
-        goal = points[-1]
-        qadr = [self._joint[n][0] for n in names]
-        for _ in range(int(self.config.settle_timeout / dt)):
-            if np.max(np.abs(self.data.qpos[qadr] - goal)) < self.config.settle_tolerance:
-                break
-            self._step()
-        return self.data.time - t0
+            return points[i] + (points[i + 1] - points[i]) * min(w, 1.0)
+
+        return self._drive(names, duration, target, points[-1], stop)
 
     def hold(self, duration: float) -> None:
         """Let the physics run for ``duration`` s with the current targets."""
