@@ -7,17 +7,17 @@ Importing this package registers the environments::
 
     env = gym.make("ipbench/Sorting-v1", scene="cluttered", render_mode="rgb_array")
 
-``ipbench/Sorting-v1`` takes the scene as a keyword (``"uncluttered"`` or ``"cluttered"``);
-the standard scenes are also registered as their own ids. Every id takes ``cameras=`` (the
-observation mode: ``("wrist", "head")`` by default, ``("wrist",)`` renders no head images). A
-released id never changes behaviour: a change bumps the version. ``-v0`` ids keep the first
-manipulation (fully opened jaws, blind descents; see :data:`ipbench.envs.sorting.V0`). ``-v2`` ids,
-the benchmark's (:data:`LATEST`), add the v2 object catalogue and structured-light depth
-(:data:`ipbench.envs.sorting.V2`), faster physics, the ``pick`` command, and a third scene,
+``ipbench/Sorting-v1`` takes the scene as a keyword (``"uncluttered"`` or ``"cluttered"``); the
+standard scenes are also registered as their own ids. Every id takes ``cameras=`` (the observation
+mode: ``("wrist", "head")`` by default, ``("wrist",)`` renders no head images). A released id never
+changes behaviour: a change bumps the version. ``-v0`` ids keep the first manipulation (fully opened
+jaws, blind descents; see :data:`ipbench.envs.sorting_config.V0`). ``-v2`` ids, the benchmark's
+(:data:`LATEST`), add the v2 object catalogue and structured-light depth
+(:data:`ipbench.envs.sorting_config.V2`), faster physics, the ``pick`` command, and a third scene,
 ``"pile"`` (twenty objects piled, some on others; ``ipbench/SortingPile-v2`` or ``scene="pile"``),
 which v0/v1 ids refuse. ``-v3`` ids (:data:`V3_IDS`, under development, see
-:data:`UNDER_DEVELOPMENT`) model bowls and mugs as a few convex pieces each and print labels
-upright (:data:`ipbench.envs.sorting.V3`).
+:data:`UNDER_DEVELOPMENT`) model bowls and mugs as a few convex pieces each and print labels upright
+(:data:`ipbench.envs.sorting_config.V3`).
 
 ``ipbench/Exploration-v0`` (:data:`EXPLORATION_IDS`, thesis ch. 3) is the second task family:
 the stereo head explores a table scene and reports the objects it recognises
@@ -71,8 +71,8 @@ V2_IDS: tuple[str, ...] = tuple(i for i in ENV_IDS if i.endswith("-v2"))
 """The v2 ids (released and frozen, as every id not in :data:`UNDER_DEVELOPMENT`)."""
 
 V3_IDS: tuple[str, ...] = tuple(i for i in ENV_IDS if i.endswith("-v3"))
-"""The v3 ids (:data:`~ipbench.envs.sorting.V3`: convex collision of hollow objects, upright
-prints; under development until their headline measurement releases them)."""
+"""The v3 ids (:data:`~ipbench.envs.sorting_config.V3`: convex collision of hollow objects,
+upright prints; under development until their headline measurement releases them)."""
 
 EXPLORATION_IDS: dict[str, dict] = {"ipbench/Exploration-v0": {}}
 """The exploration ids (thesis ch. 3) and the keyword arguments each fixes; entry point
@@ -91,11 +91,11 @@ class EnvIdError(ValueError):
 
 
 def env_config(env_id: str, **overrides) -> SortingConfig:
-    """The :class:`~ipbench.envs.sorting.SortingConfig` that ``gym.make(env_id, **overrides)``
-    runs with (what a capture rig or a report needs to know about an id). Overrides are checked
-    as ``gym.make`` checks them, e.g. ``cameras=("wrist",)`` (the observation mode, see
-    :data:`~ipbench.envs.sorting.CAMERAS`): a bad value is a ``ValueError`` listing the valid
-    ones."""
+    """The :class:`~ipbench.envs.sorting_config.SortingConfig` that
+    ``gym.make(env_id, **overrides)`` runs with (what a capture rig or a report needs to know
+    about an id). Overrides are checked as ``gym.make`` checks them, e.g. ``cameras=("wrist",)``
+    (the observation mode, see :data:`~ipbench.envs.sorting_config.CAMERAS`): a bad value is a
+    ``ValueError`` listing the valid ones."""
     if env_id not in ENV_IDS:
         raise EnvIdError(f"unknown env id {env_id!r}; valid: {', '.join(ENV_IDS)}")
     return SortingConfig(**{**ENV_IDS[env_id], **overrides})

@@ -397,15 +397,34 @@ class Skills:
         self._close()
         self.robot.move_to(up, speed_fraction=0.25)
 
+    def _carry_poses(self, xy, z: float, above_z: float, yaw: float):
+        """The poses of a set-down over ``xy``: the carry pose at ``above_z`` and the release
+        pose at ``z`` (TCP heights, m). With ``line_step``, where the arm cannot reach
+        ``above_z`` there, the carry goes as high as it reaches, tried ``line_step`` apart down
+        to the release height. Raises PlanningError."""
+        heights = [above_z]
+        if self.config.line_step is not None and above_z > z:
+            n = int(np.ceil((above_z - z) / self.config.line_step))
+            heights += [above_z - (above_z - z) * k / n for k in range(1, n + 1)]
+        for k, height in enumerate(heights):
+            try:
+                above = self.tool_pose(xy, height, yaw)
+                break
+            except PlanningError:
+                if k == len(heights) - 1:
+                    raise
+        return above, self.tool_pose(xy, z, yaw, q0=above.q)
+
     def _set_down(self, name: str, xy, z: float, yaw: float, above_z: float) -> SkillResult:
         """Carry the object in hand over ``xy`` at ``above_z``, lower the TCP to ``z`` with the
-        jaws along ``yaw``, let go and retreat upwards."""
+        jaws along ``yaw``, let go and retreat upwards (with ``line_step``: straight up to the
+        carry height, so that the open jaws leave the way they came and do not sweep what they
+        set down)."""
         t0 = self._t()
         if not self.holding:
             return SkillResult(name, False, "nothing in hand", 0.0)
         try:
-            above = self.tool_pose(xy, above_z, yaw)
-            down = self.tool_pose(xy, z, yaw, q0=above.q)
+            above, down = self._carry_poses(xy, z, above_z, yaw)
         except PlanningError as err:
             return SkillResult(name, False, f"unreachable: {err}", 0.0)
         self.robot.move_to(above)
@@ -413,7 +432,11 @@ class Skills:
         self.grasp_yaw = yaw
         self._gripper(self.config.open_width, self.config.release_time)
         self.holding = False
-        self._retreat()
+        if self.config.line_step is None:
+            self._retreat()
+        else:
+            carry_z = float(self.robot.gripper_ik.site_pose(above.q)[0][2])
+            self._lift_straight(max(carry_z, self._transit_z()))
         return SkillResult(name, True, "", self._t() - t0)
 
     def place_in_bin(self, category: str) -> SkillResult:

@@ -85,7 +85,7 @@ EVAL_CAMERAS: tuple[str, ...] = ("wrist",)
 """The cameras the policies of :data:`POLICIES` read (``observation["wrist_*"]`` and ``qpos``;
 the oracle also ``info["wrist_mask"]``; none reads the head's stereo pair): what the
 evaluation and its capture rigs ask the environment to render
-(``gym.make(env_id, cameras=EVAL_CAMERAS)``, see :data:`ipbench.envs.sorting.CAMERAS`)."""
+(``gym.make(env_id, cameras=EVAL_CAMERAS)``, see :data:`ipbench.envs.sorting_config.CAMERAS`)."""
 INTERACTIVE: dict[str, tuple[str, str]] = {
     "gp-ipm": ("gp", "hand"),
     "gp-ipm-area": ("gp", "area"),

@@ -1,10 +1,11 @@
-"""``Sorting-v3``'s picks (:data:`ipbench.envs.skills.V3_SKILLS`): a lying bottle grasped off its
-centre of mass is lifted level, a flared bowl is held by its rim through a lift and a turn,
-and the released ids keep the released skills."""
+"""``Sorting-v3``'s skills (:data:`ipbench.envs.skills.V3_SKILLS`): a lying bottle grasped off
+its centre of mass is lifted level, a flared bowl is held by its rim through a lift and a turn,
+a set-down carries lower where the arm cannot reach the planned height and backs up straight
+after letting go, and the released ids keep the released skills."""
 
 from __future__ import annotations
 
-from dataclasses import fields
+from dataclasses import fields, replace
 
 import gymnasium as gym
 import numpy as np
@@ -15,6 +16,7 @@ from ipbench.assets.objects import find_instance
 from ipbench.assets.objects.poses import resting_poses
 from ipbench.envs.grasp_sensing import Wrench, load_offset
 from ipbench.envs.layout import Layout, PlacedObject
+from ipbench.envs.robot import PlanningError
 from ipbench.envs.skills import V3_SKILLS, SkillConfig
 from ipbench.envs.sorting import PICK, V2, V3, workcell_places
 from ipbench.policies.scripted import GroundTruthSorter
@@ -109,6 +111,94 @@ def test_a_flared_bowl_is_held_by_its_rim_through_a_lift_and_a_turn():
     assert [s["success"] for s in skills] == [True], skills
     released, _ = _rim_grasp(SkillConfig())  # the fixture: the finger meets the rim first
     assert released[0] != "in_hand"
+
+
+def _picked_upright_bottle(skills: SkillConfig):
+    """``Sorting-v3`` (with ``skills``) with the bottle standing alone, picked and held."""
+    env, obs, info = _alone("ipbench/Sorting-v3", BOTTLE, "upright", skills)
+    action = GroundTruthSorter().act(obs, info)
+    _, _, _, _, info = env.step(dict(action, command=env.unwrapped.commands.index(PICK)))
+    assert info["objects"][0]["status"] == "in_hand", info["skills"]
+    return env, action
+
+
+def _place(env, action) -> tuple[dict, dict]:
+    """``place_in_bin`` into the bottle's own bin; the step's ``info`` and the set-down's
+    skill result."""
+    _, _, _, _, info = env.step(dict(action, command=0))
+    return info, next(s for s in info["skills"] if s["name"] == "place_in_bin")
+
+
+def _cap_reach(env, top: float) -> None:
+    """From now on the gripper arm reaches no TCP height above ``top`` (world z, m)."""
+    skills = env.unwrapped.skills
+    tool_pose = skills.tool_pose
+
+    def capped(xy, z, yaw, q0=None):
+        if z > top:
+            raise PlanningError(f"capped: cannot reach z={z:.3f} above {top:.3f}")
+        return tool_pose(xy, z, yaw, q0)
+
+    skills.tool_pose = capped
+
+
+def _carry_height(env) -> float:
+    """The TCP height ``place_in_bin`` plans to carry the object in hand at (world z, m)."""
+    return env.unwrapped.skills._transit_z() + 0.1
+
+
+def test_a_set_down_the_arm_cannot_carry_as_high_as_planned_carries_lower():
+    env, action = _picked_upright_bottle(V3_SKILLS)
+    try:
+        _cap_reach(env, _carry_height(env) - 0.05)
+        info, set_down = _place(env, action)
+        assert info["objects"][0]["status"] == "in_bin:juice_bottle", info["skills"]
+        assert set_down["success"], set_down
+    finally:
+        env.close()
+    # the fixture: a set-down that only tries the planned height fails and keeps the object
+    env, action = _picked_upright_bottle(replace(V3_SKILLS, line_step=None))
+    try:
+        _cap_reach(env, _carry_height(env) - 0.05)
+        info, set_down = _place(env, action)
+        assert info["objects"][0]["status"] == "in_hand"
+        assert "unreachable" in set_down["reason"], set_down
+    finally:
+        env.close()
+
+
+def _set_down_path(skills: SkillConfig) -> tuple[np.ndarray, float]:
+    """The TCP's positions (n, 3) every 10 ms from the moment the jaws let go of the bottle in
+    its bin to the end of the step, and the planned carry height (world z, m)."""
+    env, action = _picked_upright_bottle(skills)
+    try:
+        u = env.unwrapped
+        tcp, finger = u.skills._tcp, u.skills._finger
+        held_width = float(u.data.qpos[finger])
+        path: list[np.ndarray] = []
+
+        def listen() -> None:
+            if path or u.data.qpos[finger] > held_width + 0.005:  # the jaws opened
+                path.append(u.data.site_xpos[tcp].copy())
+
+        u.add_frame_listener(listen, fps=100)
+        carry = _carry_height(env)
+        info, _ = _place(env, action)
+        assert info["objects"][0]["status"] == "in_bin:juice_bottle", info["skills"]
+        return np.array(path), carry
+    finally:
+        env.close()
+
+
+def test_after_a_set_down_the_open_jaws_back_up_the_way_they_came():
+    path, carry = _set_down_path(V3_SKILLS)
+    assert len(path) > 10
+    off_vertical = np.linalg.norm(path[:, :2] - path[0, :2], axis=1)
+    assert off_vertical.max() < 0.005, off_vertical.max()  # straight up over the bin
+    assert path[-1, 2] > carry - 0.005, (path[-1, 2], carry)  # as high as it came in
+    # the fixture: the released set-down stays low over the bin (the next carry sweeps it)
+    released, carry = _set_down_path(replace(V3_SKILLS, line_step=None))
+    assert released[-1, 2] < carry - 0.05, (released[-1, 2], carry)
 
 
 def test_the_released_ids_keep_the_released_skills():

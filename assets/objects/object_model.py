@@ -5,7 +5,7 @@ The catalogues fix what an object *is* (its dimensions, mass, colours and prints
 model fixes how the simulator represents it. ``ObjectModel()`` is the model every released id
 runs (``Sorting-v0`` to ``-v2``, ``Exploration-v0``): hollow objects collide as rings of thin
 boxes and printed textures are mapped as they were released. ``Sorting-v3`` runs
-:data:`~ipbench.envs.sorting.V3`'s model: hollow objects as a few convex pieces each, prints
+:data:`~ipbench.envs.sorting_config.V3`'s model: hollow objects as a few convex pieces each, prints
 upright. Mass, centre of mass and inertia are the same under every model (computed from the
 thin-wall primitives, :func:`~ipbench.assets.objects.geometry.object_geometry`).
 """
