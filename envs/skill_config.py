@@ -44,13 +44,17 @@ class SkillConfig:
         joint-space move from the transit height bows the TCP up to 4 cm off the vertical in
         its last 10 cm (measured on ``SortingCluttered-v3``'s picks), sweeping the fingers
         into the neighbours; the bow shrinks with the square of the segment, so 0.02 keeps it
-        under 0.2 mm, below the IK's 1 mm tolerance. It also sets two things of a set-down
-        (into a bin or the inspection area): where the arm cannot reach the planned carry
-        height over the place, the carry goes as high as it reaches there (heights tried this
-        far apart, down to the release height), instead of failing with the object in hand;
-        and after letting go the open jaws rise straight up to the carry height instead of
-        one joint-space move to the transit height, which can swing them through what they
-        just set down. ``None``: one joint-space move each (released ids).
+        under 0.2 mm, below the IK's 1 mm tolerance. It also sets three things of a
+        set-down (into a bin or the inspection area): where the arm cannot reach the planned
+        carry height over the place, the carry goes as high as it reaches there (heights tried
+        this far apart, down to the release height), instead of failing with the object in
+        hand; the object is lowered to its release height on a vertical line that stops where
+        the wrist wrench senses it supported (the hanging load halved: it rests on something,
+        as on a bottle standing out of a full bin, which one joint-space move rams at over
+        100 N and can fling out); and after letting go the open jaws rise straight up to the
+        carry height instead of one joint-space move to the transit height, which can swing
+        them through what they just set down. ``None``: one joint-space move each (released
+        ids).
     line_speed : the TCP's peak speed on those lines (m/s): 0.25, the reduced speed of
         ISO 10218-1:2011 (5.6), a speed at which the arm's position servos track the line
         within about 2 mm (at the released descent's quarter joint speed the TCP runs at up

@@ -12,7 +12,9 @@ while grasping, as a robot with a wrist force/torque sensor
 (:mod:`ipbench.envs.grasp_sensing`) and pad contact sensing would: a finger that lands on
 something well above the grasp height is moved in and the descent tried again; jaws stopped
 by something a pad does not touch close again higher; and a load that hangs off the jaws'
-centre is set down and grasped again through its centre of mass. Each is a
+centre is set down and grasped again through its centre of mass. Its set-downs lower the
+object on a straight line that stops where the wrist senses it supported, and back up
+straight after letting go. Each is a
 :class:`~ipbench.envs.skill_config.SkillConfig` field whose default is the released pick.
 The skills plan from the commanded pose, the joint encoders, the wrist wrench and the pads'
 contacts only, never from an object's pose in the simulation.
@@ -428,7 +430,10 @@ class Skills:
         except PlanningError as err:
             return SkillResult(name, False, f"unreachable: {err}", 0.0)
         self.robot.move_to(above)
-        self.robot.move_to(down, 0.25)
+        if self.config.line_step is None:
+            self.robot.move_to(down, 0.25)
+        else:
+            self._lower_until_supported(xy, above, down, yaw)
         self.grasp_yaw = yaw
         self._gripper(self.config.open_width, self.config.release_time)
         self.holding = False
@@ -438,6 +443,27 @@ class Skills:
             carry_z = float(self.robot.gripper_ik.site_pose(above.q)[0][2])
             self._lift_straight(max(carry_z, self._transit_z()))
         return SkillResult(name, True, "", self._t() - t0)
+
+    def _lower_until_supported(self, xy, above, down, yaw: float) -> None:
+        """Lower the object in hand from the carry pose ``above`` to the release pose ``down``
+        on a vertical line over ``xy``, stopping where the wrist wrench senses it supported:
+        the load's vertical force has fallen to half of what hung from the jaws at the start
+        (what it now rests on, e.g. an object standing out of a full bin, carries the rest)."""
+        top = float(self.robot.gripper_ik.site_pose(above.q)[0][2])
+        z = float(self.robot.gripper_ik.site_pose(down.q)[0][2])
+        try:
+            path = self._vertical_path(xy, top, z, yaw, above.q)
+        except PlanningError:
+            self.robot.move_to(down, 0.25)
+            return
+        force_z, _ = self._wrench_offset()
+
+        def supported() -> bool:
+            return self._wrench_offset()[0] > 0.5 * force_z
+
+        stop = supported if force_z < -self.config.min_load else None
+        seconds = 1.875 * (top - z) / self.config.line_speed
+        self.robot.move_path(path, 0.25, stop=stop, min_duration=seconds)
 
     def place_in_bin(self, category: str) -> SkillResult:
         """Carry the object in hand over the bin of ``category`` and let go just above the rim

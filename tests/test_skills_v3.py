@@ -1,7 +1,8 @@
 """``Sorting-v3``'s skills (:data:`ipbench.envs.skills.V3_SKILLS`): a lying bottle grasped off
 its centre of mass is lifted level, a flared bowl is held by its rim through a lift and a turn,
-a set-down carries lower where the arm cannot reach the planned height and backs up straight
-after letting go, and the released ids keep the released skills."""
+a set-down carries lower where the arm cannot reach the planned height, stops on what stands
+in the bin and backs up straight after letting go, and the released ids keep the released
+skills."""
 
 from __future__ import annotations
 
@@ -221,3 +222,54 @@ def test_a_point_load_is_found_where_it_acts(weight):
     wrench = Wrench(force, np.cross(where, force), point)
     np.testing.assert_allclose(load_offset(wrench), [where[0], where[1], 0.0], atol=1e-12)
     assert load_offset(Wrench(np.array([5.0, 0.0, 0.5]), np.zeros(3), point)) is None
+
+
+def _peak_wrist_force_placing_onto_a_standing_bottle(skills: SkillConfig) -> tuple[float, str]:
+    """Place a held upright bottle into a bin in which a bottle stands up to 5 cm above the
+    held one's release height (24 cm deep bins, the object let go with its bottom at the rim):
+    the largest upward force on the wrist (N) and where the held bottle ends up."""
+    skills = replace(skills, bin_release_clearance=0.0)
+    env = gym.make("ipbench/Sorting-v3", cameras=("wrist",), skills=skills, bin_depth=0.24)
+    try:
+        u = env.unwrapped
+        env.reset(seed=0)
+        inst = find_instance(BOTTLE)
+        pose = next(p for p in resting_poses(inst) if p.name == "upright")
+        places = u.world.places
+        box = places.bins["juice_bottle"]
+        x, y, _ = places.spawn_area.center
+        on_table = (float(x), float(y), float(places.table_height + pose.height))
+        floor = float(box.center[2] - box.half[2])
+        in_bin = (float(box.center[0]), float(box.center[1]), floor + pose.height)
+        layout = Layout(
+            "stand",
+            0,
+            (
+                PlacedObject(0, inst, pose, on_table, 0.0, pose.quat),
+                PlacedObject(1, inst, pose, in_bin, 0.0, pose.quat),
+            ),
+        )
+        obs, info = env.reset(seed=0, options={"layout": layout})
+        assert info["objects"][1]["status"] == "in_bin:juice_bottle"
+        action = GroundTruthSorter().act(obs, info)
+        _, _, _, _, info = env.step(dict(action, command=u.commands.index(PICK)))
+        assert info["objects"][0]["status"] == "in_hand", info["skills"]
+        peak = [0.0]
+
+        def listen() -> None:
+            peak[0] = max(peak[0], u.skills._wrench_offset()[0])
+
+        u.add_frame_listener(listen, fps=500)
+        _, _, _, _, info = env.step(dict(action, command=0, bin=np.int64(0)))
+        return peak[0], info["objects"][0]["status"]
+    finally:
+        env.close()
+
+
+def test_a_set_down_stops_on_what_stands_in_the_bin_instead_of_ramming_it():
+    peak, status = _peak_wrist_force_placing_onto_a_standing_bottle(V3_SKILLS)
+    assert peak < 30.0, peak  # about the bottle's weight (10.6 N): it came to rest on the other
+    assert status.startswith("in_bin"), status
+    # the fixture: the released set-down drives the held bottle into the standing one
+    rammed, _ = _peak_wrist_force_placing_onto_a_standing_bottle(replace(V3_SKILLS, line_step=None))
+    assert rammed > 100.0, rammed
