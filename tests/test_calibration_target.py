@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from ipbench.perception.calibration.errors import CalibrationError
-from ipbench.perception.calibration.target import Checkerboard, find_corners
+from ipbench.perception.calibration.target import Checkerboard, board_in_view, find_corners
 
 BOARD = Checkerboard()
 W, H = 640, 480
@@ -122,3 +122,24 @@ def test_bad_input_raises():
         find_corners(np.zeros((H, W, 4), np.uint8), BOARD)
     with pytest.raises(CalibrationError, match="Checkerboard"):
         find_corners(np.zeros((H, W), np.uint8), (9, 6))
+
+
+@pytest.mark.parametrize("u_first", [6.0, 30.0])
+def test_a_board_cut_by_the_image_border_is_not_in_view(u_first):
+    # the same frontal board, first inside the image, then moved left until the border cuts
+    # its outer squares or its white margin while every inner corner stays in the image
+    image, truth = view(BOARD, *POSES[0])
+    assert board_in_view(find_corners(image, BOARD), BOARD, (H, W))
+    z = POSES[0][1][2]
+    x = (u_first - K[0, 2]) * z / K[0, 0]  # the first corner u_first px from the left border
+    image, truth = view(BOARD, POSES[0][0], (x, POSES[0][1][1], z))
+    assert truth[:, 0].min() == pytest.approx(u_first, abs=0.01)
+    assert not board_in_view(truth, BOARD, (H, W))
+    corners = find_corners(image, BOARD)
+    if corners is not None:  # found anyway (the planted bad view): flagged
+        assert not board_in_view(corners, BOARD, (H, W))
+
+
+def test_board_in_view_needs_the_boards_corners():
+    with pytest.raises(CalibrationError, match="54 finite"):
+        board_in_view(np.zeros((10, 2)), BOARD, (H, W))

@@ -11,7 +11,9 @@ box, the face turned towards the head within ``head_tilt_deg`` and rolled within
   image the scene at the calibration gaze ``g0`` (the *before* images), then both PTUs move to
   a random gaze ``g = g0 + (dpan, dtilt)`` (uniform within :data:`PAN_RANGE_DEG` and
   :data:`TILT_RANGE_DEG` per unit, on the PTU step grid) and image it again (*after*: the
-  board's corners are found there, ``cv2.findChessboardCornersSB`` on the distorted images).
+  board's corners are found there, ``cv2.findChessboardCornersSB`` on the distorted images;
+  a view in which the image border cuts the printed board, margin included, is drawn again and
+  counted in ``cut_by_border``: :func:`~ipbench.perception.calibration.target.board_in_view`).
   The corners are undistorted with the calibrated distortion and triangulated with:
 
   * ``true``: the true intrinsics, lens and poses (the floor set by corner detection);
@@ -91,7 +93,7 @@ from ipbench.eval.calibration.calibrate import (
 from ipbench.perception.calibration.dynamic import right_from_chain, update_left_pose
 from ipbench.perception.calibration.errors import CalibrationError
 from ipbench.perception.calibration.poses import invert
-from ipbench.perception.calibration.target import Checkerboard, find_corners
+from ipbench.perception.calibration.target import Checkerboard, board_in_view, find_corners
 from ipbench.perception.stereo import StereoRig
 
 __all__ = [
@@ -115,7 +117,7 @@ THESIS = {  # A. Khan, PhD thesis, University of Glasgow, 2018, ch. 4
     "xtion_rmse_mm": 12.5,  # Table 4.4
     "kinect_v2_rmse_mm": 11.6,  # Table 4.5
 }
-_MAX_ATTEMPTS = 6  # sampled trials per kept one at most (IK failures, boards out of view)
+_MAX_ATTEMPTS = 30  # sampled trials per kept one at most (IK failures, boards cut or out of view)
 _PRODUCT_PIXELS = ((0.15, 0.55), (0.5, 0.6), (0.85, 0.55), (0.2, 0.9), (0.55, 0.92), (0.85, 0.9))
 
 
@@ -270,7 +272,8 @@ def reconstruct_head(
     each summary (:data:`HEAD_METHODS`) has ``rmse_mm``, ``mean_abs_distance_error_mm``,
     ``axis_mean_abs_residual_mm`` ((3,) x, y, z), ``per_trial_rmse_mm``; a method whose
     update fails in a trial (:class:`CalibrationError`) is left out of that trial and counted
-    in ``failures``.
+    in ``failures``; ``cut_by_border`` counts the views drawn again because the image border
+    cut the board.
     """
     _check(calibration, "head", poses, seed)
     start = time.perf_counter()
@@ -306,7 +309,7 @@ def reconstruct_head(
     head_mid = 0.5 * (data.cam(CAMERAS["head_left"]).xpos + data.cam(CAMERAS["head_right"]).xpos)
     renderer = SensorRenderer(true_model)
     trials, failures = [], {m: 0 for m in HEAD_METHODS}
-    attempts = 0
+    attempts = cut = 0
     try:
         while len(trials) < poses and attempts < poses * _MAX_ATTEMPTS:
             attempts += 1
@@ -327,6 +330,9 @@ def reconstruct_head(
             after = {n: _render(renderer, true_model, data, n, size, errors) for n in K}
             corners = {n: find_corners(after[n], board) for n in K}
             if corners["head_left"] is None or corners["head_right"] is None:
+                continue
+            if not all(board_in_view(c, board, size) for c in corners.values()):
+                cut += 1  # the border cuts the board: its outer corners are not measurable
                 continue
             ndata.qpos[adr] = gaze
             mujoco.mj_forward(nominal, ndata)
@@ -379,6 +385,7 @@ def reconstruct_head(
         "failures": failures,
         "trials": len(trials),
         "attempts": attempts,
+        "cut_by_border": cut,
         "products": [p[:2] for p in products],
         "per_trial": [{"gaze_rad": t["gaze_rad"]} for t in trials],
         "seconds": time.perf_counter() - start,
