@@ -21,6 +21,7 @@ from ipbench.eval.calibration.reconstruction import (
     reconstruct_head,
 )
 from ipbench.eval.calibration.wrist_reconstruction import reconstruct_wrist
+from ipbench.perception.calibration.errors import CalibrationError
 from ipbench.perception.calibration.target import Checkerboard
 
 ROBOT_SEED = 3
@@ -102,6 +103,33 @@ def test_exact_cell_reconstructs_the_board_within_the_thesis_figure(exact_cell):
     errors = head["methods"]["true"]
     assert errors["rmse_mm"] < 0.2
     assert max(errors["axis_mean_abs_residual_mm"]) < THESIS["head_axis_residual_max_mm"]
+
+
+def test_methods_are_compared_on_the_trials_every_one_of_them_reconstructed(
+    exact_cell, monkeypatch
+):
+    import ipbench.eval.calibration.reconstruction as reconstruction
+
+    update, calls = reconstruction.update_left_pose, [0]
+
+    def fails_in_the_second_trial(*args, **kwargs):
+        calls[0] += 1
+        if calls[0] in (3, 4):  # two updates per trial (each camera)
+            raise CalibrationError("planted: too few matches")
+        return update(*args, **kwargs)
+
+    monkeypatch.setattr(reconstruction, "update_left_pose", fails_in_the_second_trial)
+    head = reconstruct_head(exact_cell, None, seed=1, poses=3)
+    n, failed = head["trials"], head["failures"]["dynamic_both"]
+    assert n == 3 and failed >= 1  # the planted failure, and any the views cause
+    # every method is scored on the trials where the last of them to fail did not
+    assert head["paired_trials"] == n - failed
+    assert len(head["methods"]["true"]["per_trial_rmse_mm"]) == n
+    assert head["paired"]["dynamic_both"] == head["methods"]["dynamic_both"]
+    true_all = head["methods"]["true"]["per_trial_rmse_mm"]
+    for method, summary in head["paired"].items():
+        assert len(summary["per_trial_rmse_mm"]) == n - failed, method
+    assert set(head["paired"]["true"]["per_trial_rmse_mm"]) < set(true_all)
 
 
 def test_bad_input_is_refused(exact_cell):

@@ -272,8 +272,9 @@ def reconstruct_head(
     each summary (:data:`HEAD_METHODS`) has ``rmse_mm``, ``mean_abs_distance_error_mm``,
     ``axis_mean_abs_residual_mm`` ((3,) x, y, z), ``per_trial_rmse_mm``; a method whose
     update fails in a trial (:class:`CalibrationError`) is left out of that trial and counted
-    in ``failures``; ``cut_by_border`` counts the views drawn again because the image border
-    cut the board.
+    in ``failures``; ``paired`` holds the same summaries over the ``paired_trials`` trials
+    that every method reconstructed (compare methods there); ``cut_by_border`` counts the
+    views drawn again because the image border cut the board.
     """
     _check(calibration, "head", poses, seed)
     start = time.perf_counter()
@@ -380,8 +381,14 @@ def reconstruct_head(
         kept = [t["methods"][m] for t in trials if m in t["methods"]]
         if kept:
             methods[m] = _summary(kept)
+    # the same trials for every method: a method that fails on hard views is otherwise scored
+    # on easier ones than the others
+    common = [t for t in trials if all(m in t["methods"] for m in HEAD_METHODS)]
+    paired = {m: _summary([t["methods"][m] for t in common]) for m in HEAD_METHODS if common}
     return {
         "methods": methods,
+        "paired": paired,
+        "paired_trials": len(common),
         "failures": failures,
         "trials": len(trials),
         "attempts": attempts,
