@@ -36,7 +36,7 @@ import numpy as np
 
 from ipbench.perception.calibration.errors import CalibrationError
 
-__all__ = ["DEFAULT_SQUARE_M", "Checkerboard", "board_in_view", "find_corners"]
+__all__ = ["DEFAULT_SQUARE_M", "Checkerboard", "board_in_view", "board_outline", "find_corners"]
 
 DEFAULT_SQUARE_M = 0.024  # m; the thesis' checkerboard squares (ch. 4, 24 mm)
 _SB_FLAGS = cv2.CALIB_CB_NORMALIZE_IMAGE | cv2.CALIB_CB_EXHAUSTIVE
@@ -217,20 +217,10 @@ def find_corners(image: np.ndarray, board: Checkerboard) -> np.ndarray | None:
     return _board_order(corners.reshape(-1, 2).astype(np.float64), gray, board)
 
 
-def board_in_view(corners: np.ndarray, board: Checkerboard, image_size: tuple[int, int]) -> bool:
-    """Whether the whole printed board, its white margin included, lies inside the image.
-
-    corners : (N, 2) inner corners found in the image (:func:`find_corners`), px.
-    image_size : (height, width) of the image, px.
-
-    The board's outline (the squares and ``margin_squares`` of quiet zone around them) is
-    mapped into the image by the homography that the found corners fit; every outline corner
-    must fall inside the image, pixel centres at integers. A detector finds the inner corners
-    of a board cut by the image border too, but the outermost ones then lack the squares and
-    the quiet zone around them that locate them: in the simulated head cameras' distorted
-    views such a view put one corner 2.6 and 7.4 px off, where corners are otherwise within
-    0.2 px.
-    """
+def board_outline(corners: np.ndarray, board: Checkerboard) -> np.ndarray | None:
+    """(4, 2) image corners (px) of the whole printed board, white margin included: its outline
+    mapped by the homography that the found inner ``corners`` ((N, 2) px, :func:`find_corners`)
+    fit; None when they fit none."""
     corners = np.asarray(corners, dtype=np.float64).reshape(-1, 2)
     if corners.shape[0] != board.n_corners or not np.all(np.isfinite(corners)):
         raise CalibrationError(
@@ -240,11 +230,28 @@ def board_in_view(corners: np.ndarray, board: Checkerboard, image_size: tuple[in
     plane = board.object_points()[:, :2] / board.square_m  # in squares
     H, _ = cv2.findHomography(plane, corners)
     if H is None:
-        return False
+        return None
     reach = 1.0 + board.margin_squares  # from an outer inner corner to the board's edge
     lo, hi = -reach, np.array([board.cols - 1, board.rows - 1]) + reach
     outline = np.array([[lo, lo], [hi[0], lo], [hi[0], hi[1]], [lo, hi[1]]], np.float64)
-    mapped = cv2.perspectiveTransform(outline.reshape(-1, 1, 2), H).reshape(-1, 2)
+    return cv2.perspectiveTransform(outline.reshape(-1, 1, 2), H).reshape(-1, 2)
+
+
+def board_in_view(corners: np.ndarray, board: Checkerboard, image_size: tuple[int, int]) -> bool:
+    """Whether the whole printed board, its white margin included, lies inside the image.
+
+    corners : (N, 2) inner corners found in the image (:func:`find_corners`), px.
+    image_size : (height, width) of the image, px.
+
+    Every corner of the board's :func:`board_outline` must fall inside the image, pixel
+    centres at integers. A detector finds the inner corners of a board cut by the image border
+    too, but the outermost ones then lack the squares and the quiet zone around them that
+    locate them: in the simulated head cameras' distorted views such a view put one corner 2.6
+    and 7.4 px off, where corners are otherwise within 0.2 px.
+    """
+    mapped = board_outline(corners, board)
+    if mapped is None:
+        return False
     height, width = image_size
     return bool(
         np.all(mapped[:, 0] >= -0.5)
