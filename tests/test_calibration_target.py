@@ -5,7 +5,12 @@ import numpy as np
 import pytest
 
 from ipbench.perception.calibration.errors import CalibrationError
-from ipbench.perception.calibration.target import Checkerboard, board_in_view, find_corners
+from ipbench.perception.calibration.target import (
+    Checkerboard,
+    board_in_view,
+    board_outline,
+    find_corners,
+)
 
 BOARD = Checkerboard()
 W, H = 640, 480
@@ -143,3 +148,12 @@ def test_a_board_cut_by_the_image_border_is_not_in_view(u_first):
 def test_board_in_view_needs_the_boards_corners():
     with pytest.raises(CalibrationError, match="54 finite"):
         board_in_view(np.zeros((10, 2)), BOARD, (H, W))
+
+
+def test_board_outline_spans_the_printed_board():
+    _, truth = view(BOARD, *POSES[0])  # frontal: px per metre is f / z on both axes
+    outline = board_outline(truth, BOARD)
+    px_per_m = K[0, 0] / POSES[0][1][2]
+    width, height = np.ptp(outline[:, 0]), np.ptp(outline[:, 1])
+    assert width == pytest.approx(BOARD.size_m[0] * px_per_m, rel=2e-3)
+    assert height == pytest.approx(BOARD.size_m[1] * px_per_m * K[1, 1] / K[0, 0], rel=2e-3)
