@@ -419,9 +419,11 @@ class Skills:
 
     def _set_down(self, name: str, xy, z: float, yaw: float, above_z: float) -> SkillResult:
         """Carry the object in hand over ``xy`` at ``above_z``, lower the TCP to ``z`` with the
-        jaws along ``yaw``, let go and retreat upwards (with ``line_step``: straight up to the
-        carry height, so that the open jaws leave the way they came and do not sweep what they
-        set down)."""
+        jaws along ``yaw``, let go and retreat upwards. With ``line_step`` the carry is as high
+        as the arm reaches there (:meth:`_carry_poses`), the lowering stops where the object
+        rests on something (:meth:`_lower_until_supported`), and the retreat goes straight up
+        to the carry height, so that the open jaws leave the way they came and do not sweep
+        what they set down."""
         t0 = self._t()
         if not self.holding:
             return SkillResult(name, False, "nothing in hand", 0.0)
