@@ -281,16 +281,22 @@ class Skills:
         """The guarded descent from ``above`` to ``grasp`` (TCP height ``z``): a vertical line
         with ``line_step``, else one joint-space move."""
         if self.config.line_step is not None:
-            start = self.robot.gripper_ik.site_pose(above.q)[0][2]
-            try:
-                path = self._vertical_path(position[:2], start, z, yaw, above.q)
-            except PlanningError:
-                path = None
-            if path is not None:
-                seconds = 1.875 * abs(start - z) / self.config.line_speed  # quintic peak
-                self.robot.move_path(path, 0.25, stop=self._touched, min_duration=seconds)
+            if self._line_down(position[:2], above, z, yaw, self._touched):
                 return
         self.robot.move_to(grasp, speed_fraction=0.25, stop=self._touched)
+
+    def _line_down(self, xy, above, z: float, yaw: float, stop) -> bool:
+        """Down a vertical line over ``xy`` from the pose ``above`` to TCP height ``z`` (m),
+        peaking at ``line_speed``, until ``stop()`` (None: to the end); False, with nothing
+        moved, when the line cannot be planned."""
+        start = self.robot.gripper_ik.site_pose(above.q)[0][2]
+        try:
+            path = self._vertical_path(xy, start, z, yaw, above.q)
+        except PlanningError:
+            return False
+        seconds = 1.875 * abs(start - z) / self.config.line_speed  # quintic peak
+        self.robot.move_path(path, 0.25, stop=stop, min_duration=seconds)
+        return True
 
     def _lift_straight(self, top: float | None = None) -> None:
         """Straight up from where the TCP is to ``top`` (world z, m), by default the height a
@@ -451,21 +457,15 @@ class Skills:
         on a vertical line over ``xy``, stopping where the wrist wrench senses it supported:
         the load's vertical force has fallen to half of what hung from the jaws at the start
         (what it now rests on, e.g. an object standing out of a full bin, carries the rest)."""
-        top = float(self.robot.gripper_ik.site_pose(above.q)[0][2])
-        z = float(self.robot.gripper_ik.site_pose(down.q)[0][2])
-        try:
-            path = self._vertical_path(xy, top, z, yaw, above.q)
-        except PlanningError:
-            self.robot.move_to(down, 0.25)
-            return
         force_z, _ = self._wrench_offset()
 
         def supported() -> bool:
             return self._wrench_offset()[0] > 0.5 * force_z
 
         stop = supported if force_z < -self.config.min_load else None
-        seconds = 1.875 * (top - z) / self.config.line_speed
-        self.robot.move_path(path, 0.25, stop=stop, min_duration=seconds)
+        z = float(self.robot.gripper_ik.site_pose(down.q)[0][2])
+        if not self._line_down(xy, above, z, yaw, stop):
+            self.robot.move_to(down, 0.25)
 
     def place_in_bin(self, category: str) -> SkillResult:
         """Carry the object in hand over the bin of ``category`` and let go just above the rim
