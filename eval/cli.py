@@ -5,7 +5,7 @@ ipbench eval perception [--env ID] [--out DIR] [--cache DIR]
 ipbench eval sorting [--scenes ...] [--policies ...] [--seeds A:B] [--workers N]
                      [--backend process|ray] [--video] [--out DIR] [--cache DIR]
 ipbench eval exploration [--scenes ...] [--policies ...] [--features ...] [--seeds A:B] ...
-ipbench eval calibration [--out DIR] [--seed S]
+ipbench eval calibration [--out DIR] [--seeds A:B] [--workers N]
 ipbench calibrate --out FILE [--cameras head,wrist] [--poses N] [--seed S] [--overwrite]
 ipbench figures [--env ID] [--out DIR]
 ipbench bench sim [--env ID] [--scene S] [--json [FILE]]

@@ -157,3 +157,22 @@ def test_board_outline_spans_the_printed_board():
     width, height = np.ptp(outline[:, 0]), np.ptp(outline[:, 1])
     assert width == pytest.approx(BOARD.size_m[0] * px_per_m, rel=2e-3)
     assert height == pytest.approx(BOARD.size_m[1] * px_per_m * K[1, 1] / K[0, 0], rel=2e-3)
+
+
+def test_a_corner_found_off_the_boards_plane_is_told_from_detection_noise():
+    from ipbench.perception.calibration.target import PLANAR_PX, planar_residual_px
+
+    board = Checkerboard()
+    K = np.array([[1519.0, 0.0, 511.5], [0.0, 1519.0, 339.5], [0.0, 0.0, 1.0]])
+    dist = np.array([-0.1, 0.08, 0.0, 0.0, 0.0])
+    rvec, tvec = np.array([0.3, -0.2, 0.1]), np.array([-0.1, -0.05, 1.5])
+    corners, _ = cv2.projectPoints(board.object_points(), rvec, tvec, K, dist)
+    corners = corners.reshape(-1, 2)
+    assert planar_residual_px(corners, board, K, dist) < 1e-3  # exact: a homography, undistorted
+    noisy = corners + np.random.default_rng(0).normal(0.0, 0.05, corners.shape)
+    assert planar_residual_px(noisy, board, K, dist) < PLANAR_PX
+    moved = corners.copy()
+    moved[14] += [2.5, -1.0]  # one corner on the wrong edge
+    assert planar_residual_px(moved, board, K, dist) > PLANAR_PX
+    # the lens bends the plane's image: without undistortion the exact corners look off it
+    assert planar_residual_px(corners, board, K, None) > planar_residual_px(corners, board, K, dist)

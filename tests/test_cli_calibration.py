@@ -51,3 +51,14 @@ def test_the_default_calibration_is_accepted_by_an_env_of_the_default_cell(tmp_p
         gym.make("ipbench/Sorting-v2", calibration=str(nominal), **kw)
     with pytest.raises(SystemExit):
         main(["calibrate", "--out", str(tmp_path / "x.json"), "--robot-seed", "-2"])
+
+
+def test_eval_calibration_takes_a_seed_range_and_a_single_seed():
+    from ipbench.eval.cli import build_parser
+    from ipbench.eval.cli_options import parse_seeds
+
+    parser = build_parser()
+    default = parser.parse_args(["eval", "calibration"])
+    assert parse_seeds(default.seeds) == tuple(range(20)) and default.robot_seed == 1
+    one = parser.parse_args(["eval", "calibration", "--seed", "3", "--robot-seed", "none"])
+    assert parse_seeds(one.seeds) == (3,) and one.robot_seed is None

@@ -1,8 +1,11 @@
 """``ipbench eval calibration``: how well the robot calibrates its cameras (thesis ch. 4).
 
-Three parts, all against the simulator's truth:
+Each seed (:func:`run_calibration_seed`) runs three parts, all against the simulator's truth,
+and every figure is reported over the seeds (:mod:`.aggregate`, :mod:`.report`), the seeds run
+through the episode machinery every task family shares (:mod:`ipbench.eval.episodes`: the
+resumable ``episodes.jsonl``, one record a seed; worker processes or Ray):
 
-1. **Hand-eye study** (:mod:`.calibration_study`, pose level): every method's X error against
+1. **Hand-eye study** (:mod:`.study`, pose level): every method's X error against
    the truth for 3/5/10/20 poses at OpenCV's regression-test noise and a tenth of it, and the
    rotation-diversity sweep that breaks Tsai; ``metrics.json``'s ``hand_eye`` block is the
    10-pose view at the default noise.
@@ -10,21 +13,26 @@ Three parts, all against the simulator's truth:
    differs from the nominal one (``robot_seed``) calibrates itself from rendered images; per
    camera, the error of the nominal model's X and of the calibrated X against the truth, and
    the intrinsics' error.
-
-3. **Reconstruction** (:mod:`.calibration_reconstruction`): the board at random poses, the
-   head at a random pan/tilt each time, triangulated with the calibrated cameras carried by
-   the encoders, or updated from tracked features (the dynamic update); the wrist Xtion's
+3. **Reconstruction** (:mod:`.reconstruction`): the board at random poses, the head at a
+   random pan/tilt each time, triangulated with the calibrated cameras carried by the
+   encoders, or updated from tracked features (the dynamic update, with its consistency
+   check) on another board pose than the one scored; the wrist Xtion's
    corners from its noisy depth (:mod:`.wrist_reconstruction`), as board shape and carried into
    the robot frame through the calibrated and the nominal chain (thesis Table 4.4).
 """
 
 from __future__ import annotations
 
+import hashlib
 import json
+from dataclasses import asdict, dataclass, replace
 from pathlib import Path
 
+import cv2
 import numpy as np
+from threadpoolctl import threadpool_limits
 
+from ipbench.eval.calibration.aggregate import aggregate
 from ipbench.eval.calibration.calibrate import (
     CalibrationCaptureConfig,
     CellCalibration,
@@ -33,11 +41,26 @@ from ipbench.eval.calibration.calibrate import (
     capture_views,
 )
 from ipbench.eval.calibration.reconstruction import THESIS, reconstruct_head
+from ipbench.eval.calibration.report import calibration_markdown, write_spread_figure
 from ipbench.eval.calibration.study import HandEyeStudyConfig, metrics_view, run_hand_eye_study
 from ipbench.eval.calibration.wrist_reconstruction import reconstruct_wrist
+from ipbench.eval.episodes import BACKENDS, check_out, run_episodes, run_grid
 from ipbench.perception.calibration.poses import rotation_angle_deg, translation_error_mm
 
-__all__ = ["reconstruction_metrics", "run_calibration_eval", "self_calibration"]
+__all__ = [
+    "RECORD_VERSION",
+    "CalibrationEvalConfig",
+    "CalibrationEvalError",
+    "reconstruction_metrics",
+    "run_calibration_eval",
+    "run_calibration_seed",
+    "self_calibration",
+]
+
+RECORD_VERSION = 3
+"""Version of a seed's record (part of the run fingerprint): 3 scores the head on a board
+shown after the dynamic update, checks the update, and measures no view with a corner found
+off the board's plane."""
 
 
 def _error(a: np.ndarray, b: np.ndarray) -> dict[str, float]:
@@ -85,146 +108,130 @@ def self_calibration(
     return out, result
 
 
-def _cell(c: dict) -> str:
-    rot, trans = c["rotation_deg"]["median"], c["translation_mm"]["median"]
-    if rot is None or trans is None:
-        return f"refused ({c['failures']} of {c['trials']})"
-    return f"{rot:.3f} / {trans:.2f}"
+@dataclass(frozen=True)
+class CalibrationEvalConfig:
+    """What ``ipbench eval calibration`` runs.
+
+    Attributes
+    ----------
+    seeds : one run of the routine per seed (its hand-eye study, board poses and gazes);
+        every figure is reported as a distribution over them.
+    robot_seed : the simulated cell's model errors (one cell for every seed; None: the
+        nominal cell).
+    poses : board views per camera group of the self-calibration.
+    reconstructions : board poses of each reconstruction (head and wrist).
+    study : the hand-eye study (its ``seed`` is replaced by each seed); None: the full study.
+    workers, backend, ray_address : seeds in parallel (:mod:`ipbench.eval.episodes`).
+    confidence : coverage of the bootstrap intervals.
+    """
+
+    seeds: tuple[int, ...] = tuple(range(20))
+    robot_seed: int | None = 1
+    poses: int = 15
+    reconstructions: int = 10
+    study: HandEyeStudyConfig | None = None
+    workers: int = 1
+    backend: str = "process"
+    ray_address: str | None = None
+    confidence: float = 0.95
+
+    def __post_init__(self) -> None:
+        seeds = tuple(self.seeds)
+        if not seeds or any(not isinstance(s, (int, np.integer)) or s < 0 for s in seeds):
+            raise CalibrationEvalError(f"seeds must be integers >= 0, got {self.seeds!r}")
+        if len(set(seeds)) != len(seeds):
+            raise CalibrationEvalError(f"seeds repeat in {seeds}; give each seed once")
+        object.__setattr__(self, "seeds", tuple(int(s) for s in seeds))
+        if self.robot_seed is not None and self.robot_seed < 0:
+            raise CalibrationEvalError(f"robot_seed is {self.robot_seed}; valid: None or >= 0")
+        for name, least in (("poses", 3), ("reconstructions", 1), ("workers", 1)):
+            if getattr(self, name) < least:
+                raise CalibrationEvalError(f"{name} is {getattr(self, name)}; valid: >= {least}")
+        if self.backend not in BACKENDS:
+            raise CalibrationEvalError(f"backend {self.backend!r}; valid: {', '.join(BACKENDS)}")
+        if not 0.0 < self.confidence < 1.0:
+            raise CalibrationEvalError(f"confidence is {self.confidence}; valid: 0 < c < 1")
+
+    def fingerprint(self) -> str:
+        """Hash of everything that changes a seed's record (not which seeds, nor where)."""
+        where = ("seeds", "workers", "backend", "ray_address", "confidence")
+        keep = {k: v for k, v in asdict(self).items() if k not in where}
+        text = json.dumps([keep, RECORD_VERSION], sort_keys=True, default=str)
+        return hashlib.sha256(text.encode()).hexdigest()[:16]
 
 
-def _markdown(metrics: dict) -> str:
-    lines = ["# Calibration (thesis ch. 4)", "", "## Hand-eye against the truth (pose level)", ""]
-    study = metrics["hand_eye_study"]
-    some = next(iter(study["cameras"].values()))["poses"]
-    columns = [(n, x) for n in some for x in some[n]]  # every pose count and noise scale
-    lines += [
-        "Median X error over the trials, rotation ° / translation mm, at OpenCV's "
-        "regression-test noise (x1) and a tenth of it (x0.1).",
-        "",
-        "| camera | method | " + " | ".join(f"{n} poses x{x}" for n, x in columns) + " |",
-        "|---|---|" + "---|" * len(columns),
-    ]
-    for cam, by in study["cameras"].items():
-        first = by["poses"][columns[0][0]][columns[0][1]]
-        for method in first:
-            text = [_cell(by["poses"][n][x][method]) for n, x in columns]
-            lines.append(f"| {cam} | {method} | " + " | ".join(text) + " |")
-    cal = metrics["self_calibration"]
-    lines += [
-        "",
-        f"## Self-calibration in the simulated cell (robot seed {cal['robot_seed']}, "
-        f"{cal['poses']} poses per camera)",
-        "",
-        "| camera | method kept | nominal model's X error | calibrated X error |",
-        "|---|---|---|---|",
-    ]
-    for cam, c in cal["cameras"].items():
-        n, k = c["nominal"], c["calibrated"]
-        lines.append(
-            f"| {cam} | {c['method']} | {n['rotation_deg']:.2f}° / {n['translation_mm']:.1f} mm"
-            f" | {k['rotation_deg']:.3f}° / {k['translation_mm']:.2f} mm |"
-        )
-    if "stereo" in cal:
-        n, k = cal["stereo"]["nominal"], cal["stereo"]["calibrated"]
-        lines.append(
-            f"| stereo (left to right) | eq. 4.7 + BA | {n['rotation_deg']:.2f}° / "
-            f"{n['translation_mm']:.1f} mm | {k['rotation_deg']:.3f}° / "
-            f"{k['translation_mm']:.2f} mm |"
-        )
-    rec = metrics["reconstruction"]
-    lines += [
-        "",
-        "## Reconstruction of the 24 mm board (thesis Tables 4.2-4.5)",
-        "",
-        "RMSE of adjacent corner distances against 24 mm and mean |residual| per axis (x, y, z) "
-        "after a rigid fit, mm; the head moved to a random pan/tilt for each board pose.",
-        "",
-        "| extrinsics | RMSE | per-axis residual | thesis |",
-        "|---|---|---|---|",
-    ]
-    thesis = "0.16 (Table 4.3), per axis < 0.3 (Table 4.2)"
-    for method, m in ((rec.get("head") or {}).get("methods") or {}).items():
-        axes = ", ".join(f"{v:.2f}" for v in m["axis_mean_abs_residual_mm"])
-        lines.append(f"| head, {method} | {m['rmse_mm']:.3f} | {axes} | {thesis} |")
-    if rec.get("wrist_rmse_mm") is not None:
-        lines.append(
-            f"| wrist Xtion depth | {rec['wrist_rmse_mm']:.2f} | | 12.5 (Table 4.4); "
-            "Kinect v2 11.6 (Table 4.5) |"
-        )
-    lines += _robot_frame(rec)
-    lines.append("")
-    return "\n".join(lines)
+class CalibrationEvalError(ValueError):
+    """Bad evaluation settings or output folder; the message says what is valid."""
 
 
-def _robot_frame(rec: dict) -> list[str]:
-    """The "Xtion in the robot frame" table (thesis Table 4.4), or nothing without a wrist."""
-    wrist = rec.get("wrist")
-    if not wrist or "robot_frame" not in wrist:
-        return []
-    lines = [
-        "",
-        "## Xtion in the robot frame (thesis Table 4.4)",
-        "",
-        "The wrist Xtion's board corners (from its noisy depth) carried into the robot base frame "
-        "by what the robot believes, the nominal forward kinematics of the flange times the "
-        'eye-in-hand X (`extrinsics="calibrated"`: the calibrated X; `"nominal"`: the '
-        "nominal model's camera mount), against the corners' true positions; residual "
-        "believed - true per base-frame axis (mean ± std) and 3D RMSE, mm, over "
-        f"{wrist['trials']} views.",
-        "",
-        "| chain | residual x | residual y | residual z | 3D RMSE | thesis |",
-        "|---|---|---|---|---|---|",
-    ]
-    names = {"calibrated": "calibrated X", "nominal": "nominal X (no calibration)"}
-    for chain, m in wrist["robot_frame"].items():
-        axes = " | ".join(
-            f"{a:+.2f} ± {s:.2f}" for a, s in zip(m["axis_mean_mm"], m["axis_std_mm"], strict=True)
-        )
-        lines.append(
-            f"| {names.get(chain, chain)} | {axes} | {m['rmse_mm']:.2f} | 12.5 (Table 4.4) |"
-        )
-    unit = wrist.get("depth_unit")
-    if unit is not None:
-        lines += [
-            "",
-            f"This run's Xtion unit (one draw per run): depth scale {unit['depth_scale']:+.2%}, "
-            f"offset {1000 * unit['depth_offset_m']:+.1f} mm; the cell's depth-to-RGB "
-            f"registration shift {tuple(unit['shift_px'])} px. A systematic depth error moves "
-            "every corner along its ray (the camera looks down at the board, so mostly along "
-            "z): the board's shape above hardly sees it, the robot frame does.",
-        ]
-    lines += [
-        "",
-        "The thesis' 12.5 mm is a Baxter arm's chain with a real Xtion: it includes the real "
-        "arm's kinematic error (joint offsets, link lengths, compliance), which our simulated arm "
-        "does not have (its chain is exact; the true cell differs from the nominal one only in the "
-        "camera mounts, PTUs, lenses and depth registration), so our figures should be lower.",
-    ]
-    return lines
+def run_calibration_seed(seed: int, config: CalibrationEvalConfig) -> dict:
+    """One seed's record: the hand-eye study, the self-calibration and the reconstruction
+    (the metrics of one run of the routine, as :func:`~.report.seed_markdown` reports them)."""
+    threads = cv2.getNumThreads()
+    # OpenCV's parallel loops (corner search, calibrateCamera) add up in an order that varies
+    # run to run, and the figures with it in their last bits: one thread makes a seed's record
+    # the same every time
+    cv2.setNumThreads(1)
+    try:
+        with threadpool_limits(1):
+            study = replace(config.study or HandEyeStudyConfig(), seed=seed)
+            result = run_hand_eye_study(study)
+            record = {"seed": seed, **metrics_view(result), "hand_eye_study": result}
+            record["self_calibration"], calibration = self_calibration(
+                seed=seed, robot_seed=config.robot_seed, poses=config.poses
+            )
+            record["reconstruction"] = reconstruction_metrics(
+                calibration, config.robot_seed, seed=seed, poses=config.reconstructions
+            )
+    finally:
+        cv2.setNumThreads(threads)
+    return json.loads(json.dumps(record, default=_plain))  # what the log will read back
+
+
+def _plain(value):
+    if isinstance(value, np.ndarray):
+        return value.tolist()
+    if isinstance(value, np.generic):
+        return value.item()
+    raise TypeError(f"{type(value).__name__} is not JSON-serialisable")
 
 
 def run_calibration_eval(
-    out: Path,
-    seed: int = 0,
-    study: HandEyeStudyConfig | None = None,
-    poses: int = 15,
-    reconstructions: int = 10,
+    out: Path, config: CalibrationEvalConfig = CalibrationEvalConfig(), progress: bool = True
 ) -> dict:
-    """Run both parts (the study of ``study``, default: the full one of ``seed``; the cell's
-    self-calibration with ``poses`` per camera; the reconstruction with ``reconstructions``
-    board poses), write ``out/metrics.json`` and
-    ``out/calibration.md``; return the metrics."""
+    """Run (or resume) every seed of ``config`` into ``out`` (``episodes.jsonl``, one record a
+    seed), then write ``metrics.json`` (:func:`~.aggregate.aggregate` of the seeds in the
+    folder's log that ``config`` asks for), ``calibration.md`` and ``spread.png``; return the
+    metrics."""
     out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
-    config = study or HandEyeStudyConfig(seed=seed)
-    result = run_hand_eye_study(config)
-    metrics = {**metrics_view(result), "hand_eye_study": result}
-    metrics["self_calibration"], calibration = self_calibration(seed=seed, poses=poses)
-    metrics["reconstruction"] = reconstruction_metrics(
-        calibration, metrics["self_calibration"]["robot_seed"], seed=seed, poses=reconstructions
+    fingerprint = config.fingerprint()
+    check_out(out, fingerprint, CalibrationEvalError)
+    log = run_grid(
+        out,
+        fingerprint,
+        {"config": asdict(config), "record_version": RECORD_VERSION},
+        lambda r: int(r["seed"]),
+        config.seeds,
+        int,
+        lambda seeds: run_episodes(
+            run_calibration_seed,
+            seeds,
+            (config,),
+            workers=config.workers,
+            backend=config.backend,
+            ray_address=config.ray_address,
+            error=CalibrationEvalError,
+        ),
+        lambda r: f"seed {r['seed']}",
+        CalibrationEvalError,
+        progress,
     )
+    records = [r for r in log.records() if int(r["seed"]) in set(config.seeds)]
+    metrics = aggregate(records, config.robot_seed, config.confidence)
+    first = min(records, key=lambda r: int(r["seed"]))
     (out / "metrics.json").write_text(json.dumps(metrics, indent=1) + "\n")
-    (out / "calibration.md").write_text(_markdown(metrics))
+    (out / "calibration.md").write_text(calibration_markdown(metrics, first))
+    write_spread_figure(metrics, out / "spread.png")
     return metrics
 
 

@@ -7,14 +7,23 @@ box, the face turned towards the head within ``head_tilt_deg`` and rolled within
 ``head_roll_deg``), in the *true* cell of ``robot_seed``
 (:func:`~ipbench.envs.cell.model_errors.sample_model_errors`), and reconstructed:
 
-- **head** (:func:`reconstruct_head`): per trial the board is presented, both head cameras
-  image the scene at the calibration gaze ``g0`` (the *before* images), then both PTUs move to
-  a random gaze ``g = g0 + (dpan, dtilt)`` (uniform within :data:`PAN_RANGE_DEG` and
-  :data:`TILT_RANGE_DEG` per unit, on the PTU step grid) and image it again (*after*: the
-  board's corners are found there, ``cv2.findChessboardCornersSB`` on the distorted images;
-  a view in which the image border cuts the printed board, margin included, is drawn again and
-  counted in ``cut_by_border``: :func:`~ipbench.perception.calibration.target.board_in_view`).
-  The corners are undistorted with the calibrated distortion and triangulated with:
+- **head** (:func:`reconstruct_head`): per trial the board is presented at pose *A*, both
+  head cameras image the scene at the calibration gaze ``g0`` (the *before* images), then both
+  PTUs move to a random gaze ``g = g0 + (dpan, dtilt)`` (uniform within :data:`PAN_RANGE_DEG`
+  and :data:`TILT_RANGE_DEG` per unit, on the PTU step grid) and image it again (the *after*
+  images, from which the dynamic update is computed: board *A*, still through the move, gives
+  it most of its features, so it must be whole in both after images). Then the arm shows the
+  board at another sampled pose *B* and both cameras image it (the *scored* images): its
+  corners are found there (``cv2.findChessboardCornersSB`` on the distorted images; a view in
+  which the image border cuts the printed board, margin included, is drawn again and counted
+  in ``cut_by_border``: :func:`~ipbench.perception.calibration.target.board_in_view`; so is a
+  view with a corner found off the board's plane, beyond
+  :data:`~ipbench.perception.calibration.target.PLANAR_PX` of the homography the corners fit
+  once undistorted with the calibrated lens, counted in ``off_plane``). Every
+  method is scored on board *B*, which no estimate saw: the update cannot be scored on
+  corners it fitted. Poses and gazes that put a board outside a view by geometry alone (the
+  pinhole cameras of the true cell) are drawn again before anything is rendered. The corners
+  are undistorted with the calibrated distortion and triangulated with:
 
   * ``true``: the true intrinsics, lens and poses (the floor set by corner detection);
   * ``encoders``: the calibrated camera poses carried from ``g0`` to ``g`` by the *nominal*
@@ -28,7 +37,12 @@ box, the face turned towards the head within ``head_tilt_deg`` and rolled within
   * ``dynamic_both``: the same update run for each camera on its own (the right camera as the
     "left" of the swapped pair). Reported because, with the right camera by the chain, the
     ``dynamic`` pair has exactly the ``encoders`` pair's relative pose (only the pair's place in
-    the base frame changes), and corner distances depend on the relative pose only.
+    the base frame changes), and corner distances depend on the relative pose only;
+  * ``dynamic_checked``: ``dynamic_both`` unless the check of
+    :func:`~ipbench.perception.calibration.consistency.epipolar_consistency` on the after
+    images (no ground truth: the stereo pair's epipolar consensus) finds the encoders' pair
+    more consistent, or the update failed; then the ``encoders`` pair. This is the robot's
+    dynamic update as it would use it (``head_dynamic_rmse_mm``).
 
   Calibrated poses: the left camera's is the head-left hand-eye ``X`` (camera-to-base at
   ``g0``), the right one's follows from it by the calibrated stereo transform (the refined
@@ -90,10 +104,22 @@ from ipbench.eval.calibration.calibrate import (
     _hold,
     _render,
 )
-from ipbench.perception.calibration.dynamic import right_from_chain, update_left_pose
+from ipbench.eval.calibration.head_views import (
+    board_geometry,
+    checked_update,
+    dynamic_updates,
+    outline_world,
+    sees_whole,
+)
 from ipbench.perception.calibration.errors import CalibrationError
 from ipbench.perception.calibration.poses import invert
-from ipbench.perception.calibration.target import Checkerboard, board_in_view, find_corners
+from ipbench.perception.calibration.target import (
+    PLANAR_PX,
+    Checkerboard,
+    board_in_view,
+    find_corners,
+    planar_residual_px,
+)
 from ipbench.perception.stereo import StereoRig
 
 __all__ = [
@@ -110,14 +136,14 @@ __all__ = [
 PAN_RANGE_DEG = 8.0
 TILT_RANGE_DEG = 5.0
 N_PRODUCTS = 6
-HEAD_METHODS = ("true", "encoders", "dynamic", "dynamic_both")
+HEAD_METHODS = ("true", "encoders", "dynamic", "dynamic_both", "dynamic_checked")
 THESIS = {  # A. Khan, PhD thesis, University of Glasgow, 2018, ch. 4
     "head_rmse_mm": 0.16,  # Table 4.3
     "head_axis_residual_max_mm": 0.3,  # Table 4.2
     "xtion_rmse_mm": 12.5,  # Table 4.4
     "kinect_v2_rmse_mm": 11.6,  # Table 4.5
 }
-_MAX_ATTEMPTS = 30  # sampled trials per kept one at most (IK failures, boards cut or out of view)
+_MAX_ATTEMPTS = 300  # sampled trials per kept one at most (boards out of view, IK failures)
 _PRODUCT_PIXELS = ((0.15, 0.55), (0.5, 0.6), (0.85, 0.55), (0.2, 0.9), (0.55, 0.92), (0.85, 0.9))
 
 
@@ -167,6 +193,14 @@ def _summary(trials: list[dict]) -> dict:
             float(np.sqrt(np.mean(t["distance_errors_mm"] ** 2))) for t in trials
         ],  # fmt: skip
     }
+
+
+def _trial_record(trial: dict) -> dict:
+    """A trial as ``per_trial`` reports it: gaze, the scored board's geometry, the check, and
+    each method's RMSE, mm."""
+    rmse = {m: float(np.sqrt(np.mean(e["distance_errors_mm"] ** 2)))
+            for m, e in trial["methods"].items()}  # fmt: skip
+    return {k: v for k, v in trial.items() if k != "methods"} | {"rmse_mm": rmse}
 
 
 def _errors(robot_seed) -> ModelErrors:
@@ -274,7 +308,11 @@ def reconstruct_head(
     update fails in a trial (:class:`CalibrationError`) is left out of that trial and counted
     in ``failures``; ``paired`` holds the same summaries over the ``paired_trials`` trials
     that every method reconstructed (compare methods there); ``cut_by_border`` counts the
-    views drawn again because the image border cut the board.
+    views drawn again because the image border cut the board, ``off_plane`` those drawn again
+    for a corner found off the board's plane; ``fallbacks`` the trials whose
+    ``dynamic_checked`` is the encoders' pair; ``per_trial`` each trial's gaze, the scored
+    board's distance and incidence (``board_distance_m``, ``incidence_deg``), what the check
+    saw (``check``) and each method's RMSE (``rmse_mm``).
     """
     _check(calibration, "head", poses, seed)
     start = time.perf_counter()
@@ -310,30 +348,47 @@ def reconstruct_head(
     head_mid = 0.5 * (data.cam(CAMERAS["head_left"]).xpos + data.cam(CAMERAS["head_right"]).xpos)
     renderer = SensorRenderer(true_model)
     trials, failures = [], {m: 0 for m in HEAD_METHODS}
-    attempts = cut = 0
+    attempts = cut = fallbacks = off_plane = 0
     try:
         while len(trials) < poses and attempts < poses * _MAX_ATTEMPTS:
             attempts += 1
-            point, normal, up = _head_presentation(rng, centre, head_mid, config)
+            # board A, still through the move, gives the update its features; board B, shown
+            # after the update, is scored: no method is scored on a corner it fitted
+            shown = [_head_presentation(rng, centre, head_mid, config) for _ in range(2)]
             step = np.radians(
                 rng.uniform(-1.0, 1.0, 4) * np.tile([PAN_RANGE_DEG, TILT_RANGE_DEG], 2)
             )
-            q = _hold(ik, q_home, plate, point, normal, up)
-            if q is None:
+            gaze = np.concatenate([spec.command(g) for g in np.split(g0 + step, 2)])
+            truly_at = _backlash(gaze, g0, errors)
+            boards = [outline_world(shown[0], board), outline_world(shown[1], board)]
+            views = ((g0, boards[0]), (truly_at, boards[0]), (truly_at, boards[1]))
+            if not all(sees_whole(true_model, data, adr, at, b, size) for at, b in views):
+                continue  # a board out of a view, by geometry alone: nothing is rendered
+            q_update, q_scored = (_hold(ik, q_home, plate, *s) for s in shown)
+            if q_update is None or q_scored is None:
                 continue
-            data.qpos[:] = q
+            data.qpos[:] = q_update
             data.qpos[adr] = g0
             mujoco.mj_forward(true_model, data)
             before = {n: _render(renderer, true_model, data, n, size, errors) for n in K}
-            gaze = np.concatenate([spec.command(g) for g in np.split(g0 + step, 2)])
-            data.qpos[adr] = _backlash(gaze, g0, errors)
+            data.qpos[adr] = truly_at
             mujoco.mj_forward(true_model, data)
             after = {n: _render(renderer, true_model, data, n, size, errors) for n in K}
-            corners = {n: find_corners(after[n], board) for n in K}
+            seen = [find_corners(after[n], board) for n in K]
+            if any(c is None or not board_in_view(c, board, size) for c in seen):
+                continue  # the update needs board A's texture in view: the products are few
+            data.qpos[:] = q_scored
+            data.qpos[adr] = truly_at
+            mujoco.mj_forward(true_model, data)
+            scored = {n: _render(renderer, true_model, data, n, size, errors) for n in K}
+            corners = {n: find_corners(scored[n], board) for n in K}
             if corners["head_left"] is None or corners["head_right"] is None:
                 continue
             if not all(board_in_view(c, board, size) for c in corners.values()):
                 cut += 1  # the border cuts the board: its outer corners are not measurable
+                continue
+            if any(planar_residual_px(corners[n], board, K[n], dist[n]) > PLANAR_PX for n in K):
+                off_plane += 1  # a corner found off the board's plane: the detector failed
                 continue
             ndata.qpos[adr] = gaze
             mujoco.mj_forward(nominal, ndata)
@@ -344,23 +399,11 @@ def reconstruct_head(
                 "true": {n: _cam_base(true_model, data, n) for n in K},
                 "encoders": enc,
             }
-            chain = invert(enc["head_left"]) @ enc["head_right"]
-            try:
-                left = update_left_pose(before["head_left"], before["head_right"],
-                                        K["head_left"], K["head_right"], dist["head_left"],
-                                        dist["head_right"], cal["head_left"], cal["head_right"],
-                                        after["head_left"]).T_world_left  # fmt: skip
-                est["dynamic"] = {"head_left": left,
-                                  "head_right": right_from_chain(left, chain)}  # fmt: skip
-                right = update_left_pose(before["head_right"], before["head_left"],
-                                         K["head_right"], K["head_left"], dist["head_right"],
-                                         dist["head_left"], cal["head_right"], cal["head_left"],
-                                         after["head_right"]).T_world_left  # fmt: skip
-                est["dynamic_both"] = {"head_left": left, "head_right": right}
-            except CalibrationError:
-                for m in ("dynamic", "dynamic_both"):
-                    failures[m] += m not in est
-            trial = {"gaze_rad": gaze.tolist(), "methods": {}}
+            est.update(dynamic_updates(before, after, K, dist, cal, enc, failures))
+            est["dynamic_checked"], check = checked_update(after, K, dist, est)
+            fallbacks += check["chosen"] != "dynamic_both"
+            trial = {"gaze_rad": gaze.tolist(), "methods": {}, "check": check,
+                     **board_geometry(shown[1], head_mid)}  # fmt: skip
             for method, pose in est.items():
                 k = true_K if method == "true" else K
                 dd = true_dist if method == "true" else dist
@@ -393,7 +436,9 @@ def reconstruct_head(
         "trials": len(trials),
         "attempts": attempts,
         "cut_by_border": cut,
+        "off_plane": off_plane,
         "products": [p[:2] for p in products],
-        "per_trial": [{"gaze_rad": t["gaze_rad"]} for t in trials],
+        "fallbacks": fallbacks,
+        "per_trial": [_trial_record(t) for t in trials],
         "seconds": time.perf_counter() - start,
     }

@@ -3,21 +3,25 @@
 ipbench report docs --from RESULTS_DIR [--out docs/results] [--readme README.md] [--headline RUN]
 
 Numbers measured by runs are never copied into the documentation by hand. This command finds
-the runs under ``--from`` (:mod:`ipbench.eval.report.runs`: sorting and perception run folders,
-an ``ipbench check --json`` report) and writes into ``--out``:
+the runs under ``--from`` (:mod:`ipbench.eval.report.runs`: sorting, perception and multi-seed
+calibration run folders, an ``ipbench check --json`` report) and writes into ``--out``:
 
 * ``index.md``: what was run, with what and on what platform (:mod:`ipbench.eval.report.index`);
 * ``sorting.md`` and its curve figures ``curve-<run>.png`` (:mod:`ipbench.eval.report.sorting`);
 * ``perception.md`` (:mod:`ipbench.eval.report.perception`);
+* ``calibration.md`` and its spread figures ``calibration-<run>.png``
+  (:mod:`ipbench.eval.report.calibration`);
 * ``data/<run>/...``: the small files the pages were rendered from (and ``data/<check>.json``).
 
 Every page says at its top that it is generated and from which files. The renderer is
 deterministic and reads nothing but those files, so ``ipbench report docs --from
 docs/results/data`` reproduces the pages byte for byte: the pages cannot drift from their
 data. With ``--readme FILE`` the headline table (:mod:`ipbench.eval.report.readme`) replaces the
-text between the README's markers, and nothing else. Everything is read and checked before
-anything is written; files of an earlier generation that this one does not write (under
-``data/``, and ``curve-*.png``) are removed, when ``--out`` holds generated pages.
+text between the README's markers, and, when there is a calibration run, the calibration table
+(:mod:`ipbench.eval.report.readme_calibration`) the text between its own markers; nothing
+else. Everything is read and checked before anything is written; files of an earlier
+generation that this one does not write (under ``data/``, ``curve-*.png`` and
+``calibration-*.png``) are removed, when ``--out`` holds generated pages.
 """
 
 from __future__ import annotations
@@ -40,9 +44,10 @@ __all__ = [
     "report_docs",
 ]
 
-PAGES: tuple[str, ...] = ("index.md", "sorting.md", "perception.md")
+PAGES: tuple[str, ...] = ("index.md", "sorting.md", "perception.md", "calibration.md")
 """The pages written (each, even with no run of its kind: the site's navigation lists them)."""
 _OWN_SUFFIXES = (".json", ".png")
+_OWN_FIGURES = ("curve-*.png", "calibration-*.png")
 
 
 @dataclass(frozen=True)
@@ -59,19 +64,25 @@ class DocsReport:
 def render_docs(found) -> dict[str, bytes]:
     """Every output file of the discovered runs (:class:`~ipbench.eval.report.runs.Discovery`):
     path relative to ``--out`` -> content."""
+    from ipbench.eval.report.calibration import calibration_figure_name, calibration_page
+    from ipbench.eval.report.calibration_data import FIGURE
     from ipbench.eval.report.index import index_page
     from ipbench.eval.report.perception import perception_page
     from ipbench.eval.report.sorting import curve_figure_name, sorting_page
 
-    sorting = found.of_kind("sorting")
+    sorting, calibration = found.of_kind("sorting"), found.of_kind("calibration")
     files = {
         "index.md": index_page(found).encode(),
         "sorting.md": sorting_page(sorting).encode(),
         "perception.md": perception_page(found.of_kind("perception")).encode(),
+        "calibration.md": calibration_page(calibration).encode(),
     }
     for run in sorting:
         if "curve.png" in run.files and "curve.json" in run.files:
             files[curve_figure_name(run)] = run.files["curve.png"]
+    for run in calibration:
+        if FIGURE in run.files:
+            files[calibration_figure_name(run)] = run.files[FIGURE]
     for run in found.runs:
         for name, content in run.files.items():
             files[f"data/{run.name}/{name}"] = content
@@ -90,7 +101,7 @@ def _stale(out: Path, files: Mapping[str, bytes]) -> list[Path]:
     data = out / "data"
     old = [p for p in data.rglob("*") if p.is_file()] if data.is_dir() else []
     old = [p for p in old if p.suffix in _OWN_SUFFIXES]
-    old += list(out.glob("curve-*.png")) if out.is_dir() else []
+    old += [p for pattern in _OWN_FIGURES for p in out.glob(pattern)] if out.is_dir() else []
     return sorted(p for p in old if p not in keep)
 
 
@@ -112,13 +123,15 @@ def report_docs(
     headline: str | None = None,
 ) -> DocsReport:
     """Render the results pages of ``from_dir`` into ``out`` and, with ``readme``, the
-    README's headline block (see the module's docstring).
+    README's headline block and, when there is a calibration run, its calibration block (see
+    the module's docstring).
 
     Raises
     ------
     DocsReportError
         On input that cannot be rendered (no results, unreadable JSON, two check reports, a
-        README without its markers, no run for the headline): nothing is written then.
+        README without the markers of a block it gets, no run for the headline): nothing is
+        written then.
     """
     out = Path(out)
     found = discover(from_dir)
@@ -126,6 +139,7 @@ def report_docs(
     readme_text = None
     if readme is not None:
         from ipbench.eval.report.readme import headline_block, replace_block
+        from ipbench.eval.report.readme_calibration import update_readme
 
         readme = Path(readme)
         try:
@@ -135,6 +149,8 @@ def report_docs(
             raise DocsReportError(f"cannot read --readme {readme}: {err.strerror or err}") from err
         link = Path(os.path.relpath(out / "index.md", readme.parent)).as_posix()
         readme_text = replace_block(text, headline_block(found, link, headline), str(readme))
+        link = Path(os.path.relpath(out / "calibration.md", readme.parent)).as_posix()
+        readme_text = update_readme(readme_text, found, link, str(readme))
     stale = _stale(out, files)
     written, unchanged = [], []
     for name, content in files.items():
@@ -165,14 +181,18 @@ def add_report_parser(sub) -> argparse.ArgumentParser:
         "docs",
         help="render the docs' results pages (and the README's headline) from results files",
         description="Finds the run folders under --from (ipbench eval sorting: summary.json + "
-        "run.json; ipbench eval perception: metrics.json; an ipbench check --json report) and "
-        "writes OUT/index.md (what was run: commands, env id, policy version, perception keys, "
-        "thresholds, seeds, platform and check verdict), OUT/sorting.md (accuracy with "
-        "intervals, paired differences against random, the accuracy-inspection curve) and "
-        "OUT/perception.md, each stamped as generated, and copies the files they were "
-        "rendered from into OUT/data, so that --from OUT/data reproduces the pages byte for "
-        "byte. --readme replaces the text between the README's results:headline:start and "
-        "results:headline:end markers (HTML comments) with the headline table.",
+        "run.json; ipbench eval perception and ipbench eval calibration --seeds: metrics.json; "
+        "an ipbench check --json report) and writes OUT/index.md (what was run: commands, env "
+        "id, policy version, perception keys, thresholds, seeds, platform and check verdict), "
+        "OUT/sorting.md (accuracy with intervals, paired differences against random, the "
+        "accuracy-inspection curve), OUT/perception.md and OUT/calibration.md (reconstruction "
+        "errors over seeds beside the thesis', paired comparisons, self-calibration, hand-eye "
+        "methods), each stamped as generated, and copies the files they were rendered from "
+        "into OUT/data, so that --from OUT/data reproduces the pages byte for byte. --readme "
+        "replaces the text between the README's results:headline:start and "
+        "results:headline:end markers (HTML comments) with the headline table and, when there "
+        "is a calibration run, the text between results:calibration:start and "
+        "results:calibration:end with the calibration table.",
         epilog="example: ipbench report docs --from results --readme README.md",
         formatter_class=report.formatter_class,
     )
@@ -192,7 +212,8 @@ def add_report_parser(sub) -> argparse.ArgumentParser:
         type=Path,
         default=None,
         metavar="FILE",
-        help="also fill the headline table between FILE's results:headline markers",
+        help="also fill the headline table between FILE's results:headline markers (and the "
+        "calibration table between its results:calibration markers)",
     )
     docs.add_argument(
         "--headline",

@@ -3,14 +3,21 @@ run and on what.
 
 For each run (:mod:`ipbench.eval.report.runs`): the command line that makes it, the environment
 id, the policy code version, the perception dataset and model keys, the inspection thresholds
-and how they were chosen, the seeds; and, when ``--from`` holds an ``ipbench check --json``
-report, its verdict and the platform it records.
+and how they were chosen, the seeds (for a calibration run: the seeds, the simulated cell and
+the intervals' confidence); and, when ``--from`` holds an ``ipbench check --json`` report, its
+verdict and the platform it records.
 """
 
 from __future__ import annotations
 
 from collections.abc import Mapping
 
+from ipbench.eval.report.calibration_data import (
+    calibration_command,
+    confidence_text,
+    robot_text,
+    seeds_prose,
+)
 from ipbench.eval.report.markdown import generated_header, seeds_text, table
 from ipbench.eval.report.perception import perception_command
 from ipbench.eval.report.runs import CheckFile, Discovery, Run
@@ -111,6 +118,15 @@ def _perception_items(run: Run) -> list[str]:
     ]
 
 
+def _calibration_items(run: Run) -> list[str]:
+    metrics = run.json("metrics.json") or {}
+    return [
+        f"Command: `{calibration_command(metrics)}`",
+        f"Seeds: {seeds_prose(metrics)}; simulated in {robot_text(metrics)}",
+        f"Intervals: bootstrap intervals of the mean over seeds at {confidence_text(metrics)}",
+    ]
+
+
 def _run_lines(run: Run, items: list[str], page: str) -> list[str]:
     data = ", ".join(f"[`{s.split('/')[-1]}`]({s})" for s in run.sources)
     return [
@@ -158,24 +174,28 @@ def index_page(found: Discovery) -> str:
     """The overview page's markdown."""
     sources = [s for r in found.runs for s in r.sources if s.endswith("run.json")]
     sources += [f"data/{r.name}/metrics.json" for r in found.of_kind("perception")]
+    sources += [f"data/{r.name}/metrics.json" for r in found.of_kind("calibration")]
     if found.check is not None:
         sources.append(found.check.source)
     lines = generated_header("Results", sources)
     lines += [
         "What was run, with what, and on what platform; the numbers are on the pages "
-        "[Sorting](sorting.md) and [Perception](perception.md). Every page is generated from "
-        "the results files, whose copies are kept beside them in `data/`.",
+        "[Sorting](sorting.md), [Perception](perception.md) and [Calibration](calibration.md). "
+        "Every page is generated from the results files, whose copies are kept beside them in "
+        "`data/`.",
         "",
         *_check_lines(found.check),
     ]
     for kind, title, items in (
         ("sorting", "Sorting runs", _sorting_items),
         ("perception", "Perception runs", _perception_items),
+        ("calibration", "Calibration runs", _calibration_items),
     ):
         runs = found.of_kind(kind)
         lines += [f"## {title}", ""]
         if not runs:
-            lines += [f"None among the results (`ipbench eval {kind}`).", ""]
+            what = f"{kind} --seeds A:B" if kind == "calibration" else kind
+            lines += [f"None among the results (`ipbench eval {what}`).", ""]
         for run in runs:
             lines += _run_lines(run, items(run), kind)
     return "\n".join(lines).rstrip("\n") + "\n"

@@ -28,6 +28,7 @@ from ipbench.eval.report.markdown import (
     seeds_text,
     table,
 )
+from ipbench.eval.report.markers import replace_marked
 from ipbench.eval.report.runs import Discovery, DocsReportError, Run
 from ipbench.eval.report.seed_sets import replications, seed_set_groups
 from ipbench.eval.report.sorting import curve_figure_name, paired_against_random
@@ -278,20 +279,4 @@ def replace_block(text: str, block: str, where: str = "README.md") -> str:
     DocsReportError
         When the markers are missing, repeated or out of order, saying which to add.
     """
-    starts, ends = text.count(START), text.count(END)
-    i, j = text.find(START), text.find(END)
-    if starts != 1 or ends != 1 or j < i:
-        problem = (
-            "has no headline markers"
-            if starts == ends == 0
-            else f"has {starts} start and {ends} end marker(s)"
-            if starts != 1 or ends != 1
-            else "has the end marker before the start marker"
-        )
-        raise DocsReportError(
-            f"{where} {problem}; put the two lines\n  {START}\n  {END}\nonce where the headline "
-            "table goes (the text between them is replaced)"
-        )
-    newline = "\r\n" if "\r\n" in text else "\n"
-    body = block if block.endswith("\n") else block + "\n"
-    return text[: i + len(START)] + newline + body.replace("\n", newline) + text[j:]
+    return replace_marked(text, block, START, END, where, "headline")

@@ -6,8 +6,9 @@ A run is a folder recognised by its files:
   perception model keys); also read: ``curve.json``, ``curve.png`` and ``episodes.jsonl``;
 * **perception** (``ipbench eval perception``): ``metrics.json`` with per-split metrics; also
   read: ``segmentation.json`` and the dataset key of ``perception.md``;
-* **exploration** and **calibration** runs are recognised, and skipped with a note (no page
-  renders them);
+* **calibration** (``ipbench eval calibration --seeds A:B``): ``metrics.json`` with ``seeds``
+  and distributions over them; also read: ``spread.png``;
+* **exploration** and single-seed calibration runs are recognised, and skipped with a note;
 
 and an ``ipbench check --json FILE`` report is any JSON file outside the runs with a
 ``verdict``, ``stages`` and ``platform``. Folders are searched up to :data:`MAX_DEPTH` levels
@@ -28,6 +29,8 @@ from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from ipbench.eval.report.calibration_data import calibration_files
+
 __all__ = [
     "EXPECTED",
     "MAX_DEPTH",
@@ -42,7 +45,7 @@ MAX_DEPTH = 4
 """How many folder levels under ``--from`` are searched for runs."""
 EXPECTED = (
     "run folders of `ipbench eval sorting` (summary.json + run.json), `ipbench eval perception` "
-    "(metrics.json), and optionally an `ipbench check --json FILE` report"
+    "or `calibration --seeds` (metrics.json), and optionally an `ipbench check --json` report"
 )
 """What ``--from`` should hold, in words (for the errors)."""
 _MAX_CHECK_BYTES = 2_000_000
@@ -99,7 +102,7 @@ class Discovery:
     notes: tuple[str, ...]
 
     def of_kind(self, kind: str) -> tuple[Run, ...]:
-        """The runs of ``kind`` (``sorting``, ``perception``)."""
+        """The runs of ``kind`` (``sorting``, ``perception``, ``calibration``)."""
         return tuple(r for r in self.runs if r.kind == kind)
 
 
@@ -181,7 +184,7 @@ def _perception_files(folder: Path, metrics: Mapping) -> dict[str, bytes]:
 
 
 def _skipped(name: str, kind: str) -> str:
-    return f"skipped `{name}`: {kind} (the pages render sorting and perception runs)"
+    return f"skipped `{name}`: {kind} (the pages render sorting, perception and calibration runs)"
 
 
 def _classify(folder: Path, name: str) -> tuple[Run | None, str | None] | None:
@@ -198,9 +201,11 @@ def _classify(folder: Path, name: str) -> tuple[Run | None, str | None] | None:
         metrics = _load(folder / "metrics.json")
         if "splits" in metrics or "5class" in metrics:
             return Run("perception", name, _perception_files(folder, metrics)), None
+        if (calibration := calibration_files(folder, metrics)) is not None:
+            return Run("calibration", name, calibration), None
         if "calibration.md" in has or "hand_eye_study" in metrics:
-            return None, _skipped(name, "a calibration run")
-        return None, _skipped(name, "its metrics.json is not of `ipbench eval perception`")
+            return None, _skipped(name, "a single-seed calibration run, made without `--seeds`")
+        return None, _skipped(name, "a metrics.json of another kind")
     if "run.json" in has and "episodes.jsonl" in has:
         return None, f"skipped `{name}`: a run without summary.json (unfinished?)"
     return None

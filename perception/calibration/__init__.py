@@ -10,5 +10,6 @@ the simulated robot and captures the data is the evaluation's (``ipbench calibra
 - :mod:`.stereo_extrinsics`: the head's right-from-left transform by the thesis' eq. 4.7,
   refined by bundle adjustment;
 - :mod:`.dynamic`: the left camera's pose after a PTU move from tracked features (§4.4.4);
+- :mod:`.consistency`: which candidate stereo pair the images' epipolar geometry supports;
 - :mod:`.poses`: 4x4 transform helpers; :mod:`.errors`: the family's root exception.
 """
