@@ -17,7 +17,7 @@ from __future__ import annotations
 import mujoco
 import numpy as np
 
-from ipbench.envs.sensors import camera_pose, intrinsics
+from ipbench.envs.sensors import camera_pose
 from ipbench.eval.calibration.calibrate import CAMERAS
 from ipbench.perception.calibration.consistency import choose_pair, epipolar_consistency
 from ipbench.perception.calibration.dynamic import right_from_chain, update_left_pose
@@ -49,9 +49,10 @@ def outline_world(shown, board: Checkerboard) -> np.ndarray:
                      for a in (-1, 1) for b in (-1, 1)])  # fmt: skip
 
 
-def sees_whole(model, data, adr, angles: np.ndarray, outline: np.ndarray, size) -> bool:
-    """Whether both head cameras, their PTUs at ``angles``, see the whole ``outline`` (pinhole,
-    :data:`VIEW_MARGIN` of the image kept clear for the lens and the detector)."""
+def sees_whole(model, data, adr, angles: np.ndarray, outline: np.ndarray, K: dict, size) -> bool:
+    """Whether both head cameras (their true camera matrices ``K`` by name, (3, 3) px, for
+    images of ``size`` (width, height)), their PTUs at ``angles``, see the whole ``outline``
+    (pinhole, :data:`VIEW_MARGIN` of the image kept clear for the lens and the detector)."""
     data.qpos[adr] = angles
     mujoco.mj_kinematics(model, data)
     mujoco.mj_camlight(model, data)
@@ -61,7 +62,7 @@ def sees_whole(model, data, adr, angles: np.ndarray, outline: np.ndarray, size) 
         local = (outline - pose[:3, 3]) @ pose[:3, :3]
         if np.any(local[:, 2] <= 0):
             return False
-        uv = (local @ intrinsics(model, CAMERAS[name], w, h).K.T)[:, :2] / local[:, 2:]
+        uv = (local @ K[name].T)[:, :2] / local[:, 2:]
         low, high = VIEW_MARGIN * np.array([w, h]), (1 - VIEW_MARGIN) * np.array([w, h])
         if np.any(uv < low) or np.any(uv > high):
             return False

@@ -362,7 +362,7 @@ def reconstruct_head(
             truly_at = _backlash(gaze, g0, errors)
             boards = [outline_world(shown[0], board), outline_world(shown[1], board)]
             views = ((g0, boards[0]), (truly_at, boards[0]), (truly_at, boards[1]))
-            if not all(sees_whole(true_model, data, adr, at, b, size) for at, b in views):
+            if not all(sees_whole(true_model, data, adr, at, b, true_K, size) for at, b in views):
                 continue  # a board out of a view, by geometry alone: nothing is rendered
             q_update, q_scored = (_hold(ik, q_home, plate, *s) for s in shown)
             if q_update is None or q_scored is None:

@@ -12,6 +12,7 @@ Figures use matplotlib's object API on an Agg canvas (no pyplot global state).
 
 from __future__ import annotations
 
+import textwrap
 from pathlib import Path
 
 from matplotlib.figure import Figure
@@ -170,7 +171,7 @@ def write_spread_figure(metrics: dict, path: Path) -> Path:
             ax.errorbar([i + 0.25], [d["mean"]], yerr=[[d["mean"] - low], [high - d["mean"]]],
                         fmt="s", color="black", ms=5, capsize=3)  # fmt: skip
         ax.axhline(ref, color="tab:red", lw=1, ls="--", label=f"thesis {ref} mm")
-        ax.set_xticks(range(len(rows)), [_wrap(t) for t in labels], fontsize=7)
+        ax.set_xticks(range(len(rows)), [textwrap.fill(t, 18) for t in labels], fontsize=7)
         ax.set_ylabel("RMSE, mm")
         ax.legend(fontsize=7, loc="upper right")
     head.set_title("head: board reconstruction per seed", fontsize=9)
@@ -178,15 +179,6 @@ def write_spread_figure(metrics: dict, path: Path) -> Path:
     fig.tight_layout()
     fig.savefig(path)
     return path
-
-
-def _wrap(text: str, width: int = 18) -> str:
-    words, lines = text.split(), [""]
-    for w in words:
-        if len(lines[-1]) + len(w) + 1 > width and lines[-1]:
-            lines.append("")
-        lines[-1] = f"{lines[-1]} {w}".strip()
-    return "\n".join(lines)
 
 
 def _cell(c: dict) -> str:
