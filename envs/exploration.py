@@ -56,7 +56,7 @@ from ipbench.envs.ptu import (
     ptu_spec,
     setpoint_step,
 )
-from ipbench.envs.sensors import SensorRenderer
+from ipbench.envs.sensors import SensorRenderer, fit_offscreen
 
 __all__ = [
     "GAZE_JOINTS",
@@ -200,6 +200,7 @@ class ExplorationEnv(gym.Env):
             )
         if self._renderer is not None:
             self._renderer.close()
+        fit_offscreen(m, self.config.head_size[1], self.config.head_size[0])
         self._renderer = SensorRenderer(m)
         roots = {m.body(o.name).id: k for k, o in enumerate(self.scene.objects)}
         self._mask_lut = np.full(m.ngeom + 1, -1, np.int32)  # last entry: background (-1)

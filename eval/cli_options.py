@@ -61,6 +61,17 @@ def parse_seeds(text: str) -> tuple[int, ...]:
     return seeds
 
 
+def parse_size(text: str, option: str = "--head-size") -> tuple[int, int]:
+    """An image size ``HxW`` (height and width in pixels, e.g. ``3264x4928``) as (H, W)."""
+    parts = text.lower().split("x")
+    if len(parts) == 2 and all(p.strip().isdigit() and int(p) > 0 for p in parts):
+        return int(parts[0]), int(parts[1])
+    raise SystemExit(
+        f"ipbench: bad {option} {text!r}; give HEIGHTxWIDTH in pixels, both > 0 "
+        "(e.g. 680x1024, 1632x2464 or 3264x4928)"
+    )
+
+
 def parse_thresholds(text: str | None) -> tuple[float, ...]:
     """``--thresholds`` as floats in [0, 1] (None: none given)."""
     if text is None:

@@ -87,3 +87,18 @@ def test_a_small_run_writes_the_report_and_resumes(tmp_path, capsys):
     other = ExplorationEvalConfig(**{**SMALL.__dict__, "saccade_budget": 4})
     with pytest.raises(ExplorationEvalError, match="another configuration"):
         run_exploration_eval(out, cache, other, progress=False)
+
+
+def test_the_database_is_captured_at_the_episodes_head_size():
+    big = ExplorationEvalConfig(head_size=(1632, 2464))
+    assert big.database.head_size == (1632, 2464)
+    # one cache entry per size, and runs of other sizes never mix in one folder
+    assert big.database.key() != ExplorationEvalConfig().database.key()
+    assert big.fingerprint() != ExplorationEvalConfig().fingerprint()
+    assert ExplorationEvalConfig().database.head_size == (680, 1024)
+
+
+@pytest.mark.parametrize("size", [(680,), (0, 1024), (680.0, 1024)])
+def test_a_bad_head_size_says_what_is_valid(size):
+    with pytest.raises(ExplorationEvalError, match=r"head_size must be \(height, width\)"):
+        ExplorationEvalConfig(head_size=size)

@@ -16,6 +16,7 @@ from ipbench.envs.sensors.cameras import (
     SensorRenderer,
     camera_id,
     camera_pose,
+    fit_offscreen,
     intrinsics,
     specular_geoms,
 )
@@ -27,6 +28,7 @@ __all__ = [
     "SensorRenderer",
     "camera_id",
     "camera_pose",
+    "fit_offscreen",
     "intrinsics",
     "specular_geoms",
 ]

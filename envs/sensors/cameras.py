@@ -29,6 +29,7 @@ __all__ = [
     "SensorRenderer",
     "camera_id",
     "camera_pose",
+    "fit_offscreen",
     "intrinsics",
     "specular_geoms",
 ]
@@ -144,6 +145,18 @@ def _check_size(model: mujoco.MjModel, width: int, height: int) -> None:
             f' raise it in the model XML: <visual><global offwidth="{max(width, offw)}"'
             f' offheight="{max(height, offh)}"/></visual>'
         )
+
+
+def fit_offscreen(model: mujoco.MjModel, width: int, height: int) -> None:
+    """Raise ``model``'s offscreen buffer to at least ``width`` x ``height`` px (never lowers
+    it), so a :class:`SensorRenderer` created afterwards renders images of that size; the
+    buffer caps the largest image, it does not change what a smaller one shows."""
+    if not (isinstance(width, (int, np.integer)) and isinstance(height, (int, np.integer))):
+        raise SensorError(f"width and height must be ints, got {width!r}, {height!r}")
+    if width < 1 or height < 1:
+        raise SensorError(f"resolution {width}x{height}; valid: width and height >= 1 px")
+    g = model.vis.global_
+    g.offwidth, g.offheight = max(int(g.offwidth), int(width)), max(int(g.offheight), int(height))
 
 
 def _owned(cls: type) -> type:

@@ -39,7 +39,7 @@ from ipbench.envs.exploration_scene import (
     build_model,
     database_instance,
 )
-from ipbench.envs.sensors import SensorRenderer
+from ipbench.envs.sensors import SensorRenderer, fit_offscreen
 from ipbench.perception.object_database import DatabaseFileError, ObjectDatabase, ObjectView
 
 __all__ = [
@@ -102,6 +102,7 @@ def capture_views(label: str, config: DatabaseCaptureConfig) -> list[ObjectView]
         table = float(data.site("work_table_top").xpos[2])
         xy = model.body_pos[body, :2].copy()
         qadr = [model.jnt_qposadr[model.joint(j).id] for j in GAZE_JOINTS]
+        fit_offscreen(model, w, h)
         renderer = SensorRenderer(model)
         try:
             for yaw in np.radians(np.arange(0.0, 360.0, config.yaw_step_deg)):

@@ -1,7 +1,8 @@
 """The exploration commands of ``ipbench`` (thesis ch. 3).
 
 ipbench eval exploration [--scenes simple,medium,complex] [--policies ...] [--features sift,...]
-                         [--seeds A:B] [--budget N] [--workers N] [--video] [--out DIR]
+                         [--seeds A:B] [--budget N] [--head-size HxW] [--workers N] [--video]
+                         [--out DIR]
                          [--cache DIR]
 ipbench bench exploration [--features ...] [--cache DIR] [--json [FILE]]
 """
@@ -15,6 +16,7 @@ from ipbench.eval.cli_options import (
     add_json_option,
     parse_names,
     parse_seeds,
+    parse_size,
     print_figures,
     run_to_summary,
     writable,
@@ -50,6 +52,12 @@ def add_eval_exploration(eval_sub) -> argparse.ArgumentParser:
         "--seeds", default="0:10", help="episode seeds: A:B (A..B-1) or a comma-separated list"
     )
     p.add_argument("--budget", type=int, default=30, help="saccades before an episode is cut")
+    p.add_argument(
+        "--head-size",
+        default="680x1024",
+        help="HEIGHTxWIDTH px of each head image; the database is captured at the same size "
+        "(the thesis' Nikon D5100: 3264x4928)",
+    )
     p.add_argument("--workers", type=int, default=1, help="episodes run in parallel")
     p.add_argument("--backend", default="process", help="one of {BACKENDS}")
     p.add_argument("--ray-address", default=None, help="Ray cluster address (--backend ray)")
@@ -106,6 +114,7 @@ def main_exploration(args) -> int:
             features=features,
             seeds=parse_seeds(args.seeds),
             saccade_budget=args.budget,
+            head_size=parse_size(args.head_size),
             workers=args.workers,
             backend=args.backend,
             ray_address=args.ray_address,

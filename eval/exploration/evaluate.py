@@ -20,7 +20,7 @@ import hashlib
 import json
 import time
 from collections import Counter
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 
 import gymnasium as gym
@@ -72,7 +72,8 @@ class ExplorationEvalConfig:
     seeds : episode seeds, the same for every policy and feature (paired); the thesis used 3
         random home positions per scene, we default to 10.
     saccade_budget : saccades before an episode is cut (the env's truncation).
-    head_size : (height, width) px of the head images.
+    head_size : (height, width) px of the head images; the recognition database is captured
+        at the same size (``database.head_size`` follows it: one cache entry per size).
     workers, backend, ray_address : parallel episodes (:mod:`ipbench.eval.episodes`).
     video : one MP4 per policy, feature and scene (its first seed).
     database : how the recognition database's views are captured.
@@ -108,6 +109,14 @@ class ExplorationEvalConfig:
             raise ExplorationEvalError(
                 f"seeds repeat: {', '.join(map(str, repeated))}; give each seed once"
             )
+        size = tuple(self.head_size)
+        if len(size) != 2 or not all(isinstance(v, int) and v > 0 for v in size):
+            raise ExplorationEvalError(
+                f"head_size must be (height, width) positive ints (px), got {self.head_size!r}"
+            )
+        object.__setattr__(self, "head_size", size)
+        if self.database.head_size != size:  # the database views are taken as the episodes'
+            object.__setattr__(self, "database", replace(self.database, head_size=size))
         if self.saccade_budget < 1:
             raise ExplorationEvalError(f"saccade_budget must be >= 1, got {self.saccade_budget}")
         if self.backend not in BACKENDS:
