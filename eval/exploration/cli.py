@@ -2,8 +2,7 @@
 
 ipbench eval exploration [--scenes simple,medium,complex] [--policies ...] [--features sift,...]
                          [--seeds A:B] [--budget N] [--head-size HxW] [--workers N] [--video]
-                         [--out DIR]
-                         [--cache DIR]
+                         [--out DIR] [--cache DIR]
 ipbench bench exploration [--features ...] [--cache DIR] [--json [FILE]]
 """
 
