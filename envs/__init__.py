@@ -23,7 +23,9 @@ which v0/v1 ids refuse. ``-v3`` ids (:data:`V3_IDS`, under development, see
 the stereo head explores a table scene and reports the objects it recognises
 (:mod:`ipbench.envs.exploration`; ``gym.make("ipbench/Exploration-v0", scene="complex")``).
 It is released and frozen: a change of behaviour gets a new version; options whose default
-keeps the behaviour, such as ``extrinsics``, may be added.
+keeps the behaviour, such as ``extrinsics``, may be added. ``ipbench/Exploration-v1`` (under
+development) looks at the thesis' resolution through foveated cameras, with upright prints
+(:data:`ipbench.envs.exploration.EXPLORATION_V1`).
 :data:`ALL_IDS` lists every registered ipbench id.
 """
 
@@ -31,6 +33,7 @@ import warnings
 
 from gymnasium.envs.registration import register
 
+from ipbench.envs.exploration import EXPLORATION_V1
 from ipbench.envs.sorting import V0, V2, V3, SortingConfig
 
 __all__ = [
@@ -74,14 +77,17 @@ V3_IDS: tuple[str, ...] = tuple(i for i in ENV_IDS if i.endswith("-v3"))
 """The v3 ids (:data:`~ipbench.envs.sorting_config.V3`: convex collision of hollow objects,
 upright prints; under development until their headline measurement releases them)."""
 
-EXPLORATION_IDS: dict[str, dict] = {"ipbench/Exploration-v0": {}}
+EXPLORATION_IDS: dict[str, dict] = {
+    "ipbench/Exploration-v0": {},
+    "ipbench/Exploration-v1": dict(EXPLORATION_V1),
+}
 """The exploration ids (thesis ch. 3) and the keyword arguments each fixes; entry point
 :class:`ipbench.envs.exploration.ExplorationEnv`. Not in :data:`ENV_IDS` (Sorting's)."""
 
 ALL_IDS: tuple[str, ...] = (*ENV_IDS, *EXPLORATION_IDS)
 """Every registered ipbench id."""
 
-UNDER_DEVELOPMENT: tuple[str, ...] = V3_IDS
+UNDER_DEVELOPMENT: tuple[str, ...] = (*V3_IDS, "ipbench/Exploration-v1")
 """Ids whose behaviour may still change until their headline measurement releases them; every
 other id is released and frozen (``tests/test_released_ids.py``)."""
 

@@ -14,13 +14,18 @@ database objects they recognise. The public contract:
   ``settle_speed``) or ``max_saccade_time`` has passed. ``saccade_budget`` saccades truncate.
 * Observation: ``head_left``/``head_right`` (HxWx3 uint8), ``head_*_K`` (3x3), ``head_*_pose``
   (4x4 world-from-camera, OpenCV axes, by forward kinematics of the encoder readings: what
-  the robot knows), ``head_qpos`` (4,) encoder readings, rad. ``extrinsics="nominal"`` or
+  the robot knows), ``head_qpos`` (4,) encoder readings, rad. With ``fovea_factor`` f > 1 the
+  cameras are foveated (:mod:`ipbench.envs.sensors.foveation`): each eye renders HxW, and
+  ``head_*`` is the whole field downsampled to (H/f)x(W/f) with its ``head_*_K``, while
+  ``head_*_fovea`` is the central (H/f)x(W/f) window at full resolution with its
+  ``head_*_fovea_K`` (same pose). ``extrinsics="nominal"`` or
   ``"calibrated"`` (:mod:`ipbench.envs.cell.extrinsics`): the world is the true cell of
   ``robot_seed`` (images and masks distorted by its lenses), ``head_*_K``/``head_*_pose`` are
   the robot's beliefs and ``head_*_dist`` (5,) the distortion it believes.
 * ``info`` (ground truth, evaluation and oracles only): ``objects`` {name: class (a
   database class or None), instance, role, position (3,), radius}, ``head_left_mask`` /
-  ``head_right_mask`` (HxW int32 index into ``objects``' order, -1 none), ``score``,
+  ``head_right_mask`` (int32 index into ``objects``' order, -1 none, the size of
+  ``head_*``; foveated: also ``head_*_fovea_mask``), ``score``,
   ``report`` (this step's outcome or None), ``saccade_s``, ``saccades``.
 * ``step()``/``render()`` before ``reset()`` or after ``close()``: :class:`ResetNeededError`;
   a bad action: :class:`InvalidActionError` naming the field and the valid range.
@@ -36,6 +41,7 @@ import numpy as np
 from gymnasium import spaces
 
 from ipbench.assets.compose import HEAD_SIDES
+from ipbench.assets.objects.object_model import RELEASED_MODEL, ObjectModel
 from ipbench.envs.cell.extrinsics import DIST_SIZE, CameraKnowledge, check_extrinsics
 from ipbench.envs.cell.model_errors import sample_model_errors
 from ipbench.envs.errors import InvalidActionError, ResetNeededError
@@ -57,8 +63,10 @@ from ipbench.envs.ptu import (
     setpoint_step,
 )
 from ipbench.envs.sensors import SensorRenderer, fit_offscreen
+from ipbench.envs.sensors.foveation import fovea_window, foveate
 
 __all__ = [
+    "EXPLORATION_V1",
     "GAZE_JOINTS",
     "REPORT_KINDS",
     "ExplorationConfig",
@@ -92,6 +100,10 @@ class ExplorationConfig:
         (:mod:`ipbench.envs.cell.extrinsics`; the module docstring).
     robot_seed : seed of the true cell's model errors (``nominal``/``calibrated`` only).
     calibration : calibration file path for ``extrinsics="calibrated"``, else None.
+    fovea_factor : 1: each head image is the whole HxW frame; f > 1: foveated cameras (module
+        docstring; f divides H and W and leaves an even border).
+    objects : how the objects are modelled (print orientation;
+        :class:`~ipbench.assets.objects.object_model.ObjectModel`).
     """
 
     scene: str = "simple"
@@ -103,6 +115,8 @@ class ExplorationConfig:
     extrinsics: str = "true"
     robot_seed: int = 0
     calibration: str | None = None
+    fovea_factor: int = 1
+    objects: ObjectModel = RELEASED_MODEL
 
     def __post_init__(self) -> None:
         check_extrinsics(self.extrinsics, self.calibration, self.robot_seed)
@@ -112,10 +126,25 @@ class ExplorationConfig:
         if len(size) != 2 or not all(isinstance(v, int) and 0 < v for v in size):
             raise ValueError(f"head_size must be (height, width) positive ints, got {size!r}")
         object.__setattr__(self, "head_size", size)
+        if self.fovea_factor != 1:
+            fovea_window(*size, self.fovea_factor)  # a centred fovea exists, else SensorError
+        if not isinstance(self.objects, ObjectModel):
+            raise ValueError(f"objects must be an ObjectModel, got {self.objects!r}")
         if not (isinstance(self.saccade_budget, int) and self.saccade_budget >= 1):
             raise ValueError(f"saccade_budget must be an int >= 1, got {self.saccade_budget!r}")
         if not (self.settle_tolerance > 0 and self.settle_speed > 0 and self.max_saccade_time > 0):
             raise ValueError("settle_tolerance, settle_speed and max_saccade_time must be > 0")
+
+
+EXPLORATION_V1: dict = {
+    "head_size": (3264, 4928),
+    "fovea_factor": 4,
+    "objects": ObjectModel(upright_prints=True),
+}
+"""What ``ipbench/Exploration-v1`` fixes: the thesis' Nikon D5100 frames (4928x3264 px, thesis
+ch. 3; the same field of view as v0's 1024x680, K scales with the size), foveated 4 times (two
+1232x816 images per eye: the whole field and the central quarter of each side at full
+resolution, the fovea the policies verge in), and prints that read upright."""
 
 
 class ExplorationEnv(gym.Env):
@@ -131,7 +160,8 @@ class ExplorationEnv(gym.Env):
         self.ptus: tuple[PtuSpec, PtuSpec] = (ptu_spec(), ptu_spec())
         lim = head_spec_arrays(self.ptus)
         self._lower, self._upper, self._speed = lim["lower"], lim["upper"], lim["speed"]
-        h, w = self.config.head_size
+        f = self.config.fovea_factor
+        h, w = self.config.head_size[0] // f, self.config.head_size[1] // f  # each image's
         b = POSITION_BOUND
         self.action_space = spaces.Dict(
             gaze=spaces.Box(self._lower, self._upper, dtype=np.float64),
@@ -146,6 +176,9 @@ class ExplorationEnv(gym.Env):
             obs[f"head_{s}"] = spaces.Box(0, 255, (h, w, 3), np.uint8)
             obs[f"head_{s}_K"] = spaces.Box(-np.inf, np.inf, (3, 3), np.float64)
             obs[f"head_{s}_pose"] = spaces.Box(-np.inf, np.inf, (4, 4), np.float64)
+            if f > 1:
+                obs[f"head_{s}_fovea"] = spaces.Box(0, 255, (h, w, 3), np.uint8)
+                obs[f"head_{s}_fovea_K"] = spaces.Box(-np.inf, np.inf, (3, 3), np.float64)
         obs["head_qpos"] = spaces.Box(self._lower, self._upper, dtype=np.float64)
         self._knowledge: CameraKnowledge | None = None  # None: extrinsics="true"
         if self.config.extrinsics != "true":
@@ -170,7 +203,7 @@ class ExplorationEnv(gym.Env):
             raise ValueError(f"unknown reset option(s) {sorted(options)}; valid: none")
         self.scene = sample_scene(self.config.scene, int(self.np_random.integers(2**31)))
         errors = None if self._knowledge is None else self._errors  # the true cell's
-        self.model = m = build_model(self.scene, errors)
+        self.model = m = build_model(self.scene, errors, self.config.objects)
         if tuple(PtuSpec.from_model(m, f"head_{s}_") for s in HEAD_SIDES) != self.ptus:
             raise RuntimeError("the work cell's PTUs differ from assets/head/ptu_d46.xml")
         self.data = mujoco.MjData(m)
@@ -346,9 +379,24 @@ class ExplorationEnv(gym.Env):
                     belief.pose,
                     belief.dist,
                 )
+        if self.config.fovea_factor > 1:
+            self._foveate(obs)
         obs["head_qpos"] = enc
         self._last_left = obs["head_left"]
         return obs
+
+    def _foveate(self, obs: dict) -> None:
+        """Replace each full-resolution head image (and mask) by its periphery and fovea."""
+        f = self.config.fovea_factor
+        h, w = self.config.head_size
+        r0, c0, rows, cols = fovea_window(h, w, f)
+        for s in HEAD_SIDES:
+            eye = foveate(obs[f"head_{s}"], obs[f"head_{s}_K"], f)
+            obs[f"head_{s}"], obs[f"head_{s}_K"] = eye.periphery, eye.periphery_K
+            obs[f"head_{s}_fovea"], obs[f"head_{s}_fovea_K"] = eye.fovea, eye.fovea_K
+            mask = self._masks[s]  # labels are not averaged: each block's pixel (f//2, f//2)
+            self._masks[s] = np.ascontiguousarray(mask[f // 2 :: f, f // 2 :: f])
+            self._masks[f"{s}_fovea"] = np.ascontiguousarray(mask[r0 : r0 + rows, c0 : c0 + cols])
 
     def _ground_truth(self, obj) -> GroundTruthObject:
         rot = np.empty(9)
@@ -369,10 +417,10 @@ class ExplorationEnv(gym.Env):
             }
             for t, o in zip(self._truth, self.scene.objects, strict=True)
         }
+        masks = {f"head_{side}_mask": mask for side, mask in self._masks.items()}
         return {
             "objects": objects,
-            "head_left_mask": self._masks["left"],
-            "head_right_mask": self._masks["right"],
+            **masks,
             "score": self._scorer.score.as_dict(),
             "report": report,
             "saccade_s": saccade_s,

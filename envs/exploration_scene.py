@@ -40,6 +40,7 @@ from ipbench.assets.objects import (
     instances,
     resting_poses,
 )
+from ipbench.assets.objects.object_model import RELEASED_MODEL, ObjectModel
 from ipbench.assets.room import Poster, add_room, layout_posters
 from ipbench.envs.cell.model_errors import ModelErrors, apply_model_errors
 from ipbench.envs.ptu import ptu_spec
@@ -313,17 +314,24 @@ def sample_scene(level: str, seed: int) -> ExplorationScene:
     )
 
 
-def build_model(scene: ExplorationScene, errors: ModelErrors | None = None) -> mujoco.MjModel:
+def build_model(
+    scene: ExplorationScene,
+    errors: ModelErrors | None = None,
+    objects: ObjectModel = RELEASED_MODEL,
+) -> mujoco.MjModel:
     """The work cell in its room with the scene's objects welded to the world (no free joint)
     and its posters, keyframe ``home``: arms at zero, the head at the scene's start gaze,
     every servo holding it. With ``errors``, the TRUE cell: the work cell's spec with
-    :func:`~ipbench.envs.cell.model_errors.apply_model_errors` before the room and objects."""
+    :func:`~ipbench.envs.cell.model_errors.apply_model_errors` before the room and objects.
+    ``objects``: how the objects are modelled (e.g. their print orientation)."""
     spec = build_workcell_spec()
     if errors is not None:
         apply_model_errors(spec, errors)
     add_room(spec, scene.posters)
     for obj in scene.objects:
-        body = add_object(spec, obj.instance, obj.name, pos=obj.position, quat=obj.quat)
+        body = add_object(
+            spec, obj.instance, obj.name, pos=obj.position, quat=obj.quat, model=objects
+        )
         for joint in list(body.joints):  # static: nothing touches them in this task
             spec.delete(joint)
     spec.add_key(name="home")

@@ -48,7 +48,7 @@ __all__ = ["main", "build_parser"]
 
 def _valid_names() -> dict[str, tuple[str, ...]]:
     """The names help texts list, by placeholder (imported when help is shown: slow)."""
-    from ipbench.envs import ENV_IDS
+    from ipbench.envs import ENV_IDS, EXPLORATION_IDS
     from ipbench.envs.exploration_scene import LEVELS
     from ipbench.envs.sorting_scenes import SCENES
     from ipbench.eval.sorting.evaluate import BACKENDS
@@ -61,6 +61,7 @@ def _valid_names() -> dict[str, tuple[str, ...]]:
         "{EXPLORATION_POLICIES}": EXPLORATION_POLICIES,
         "{FEATURES}": FEATURE_TYPES,
         "{ENV_IDS}": tuple(ENV_IDS),
+        "{EXPLORATION_IDS}": tuple(EXPLORATION_IDS),
         "{SCENES}": tuple(SCENES),
         "{POLICIES}": POLICIES,
         "{BACKENDS}": BACKENDS,

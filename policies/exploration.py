@@ -27,7 +27,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ipbench.envs.exploration_scene import DATABASE_CLASSES, database_instance
-from ipbench.perception.features2d import DEFAULT_MAX_FEATURES, Features
+from ipbench.perception.features2d import DEFAULT_MAX_FEATURES
 from ipbench.perception.object_database import ObjectDatabase
 from ipbench.perception.recognition import RecognitionConfig
 from ipbench.perception.saliency import (
@@ -96,15 +96,15 @@ def _fovea(shape: tuple[int, ...]) -> tuple[float, float, float, float]:
     return (w / 2 - fx, h / 2 - fy, w / 2 + fx, h / 2 + fy)
 
 
-def verge(obs: dict, left: Features, right: Features) -> tuple[np.ndarray, float | None]:
+def verge(obs: dict, seen: Look) -> tuple[np.ndarray, float | None]:
     """Selective vergence on the fovea: the gaze with the right PTU turned so that the fovea's
-    peak disparity between the eyes' features ``left`` and ``right`` goes to zero, and that
-    disparity (px; ``None`` without matches)."""
+    peak disparity between the eyes' features of ``seen`` goes to zero, and that disparity
+    (working-frame px; ``None`` without matches)."""
     gaze = np.asarray(obs["head_qpos"], float)
-    v = peak_disparity(left, right, roi=_fovea(obs["head_left"].shape))
+    v = peak_disparity(seen.left, seen.right, roi=_fovea(seen.size))
     if v is None:
         return gaze, None
-    return verge_right(gaze, pan_correction(v, obs["head_right_K"])), v.disparity
+    return verge_right(gaze, pan_correction(v, seen.rig.K_right)), v.disparity
 
 
 @dataclass
@@ -247,10 +247,10 @@ class ActiveVision(ExplorationPolicy):
         self.misses = 0
 
     def decide(self, obs, seen, info):
-        K, pose = obs["head_left_K"], obs["head_left_pose"]
+        K, pose = seen.rig.K_left, obs["head_left_pose"]  # noqa: N806  (working frame)
         disparity, verified = None, self.attending is not None
         if self.attending is not None:
-            gaze, disparity = verge(obs, seen.left, seen.right)
+            gaze, disparity = verge(obs, seen)
             if (
                 disparity is not None
                 and abs(disparity) >= VERGENCE_GOAL_PX
@@ -281,9 +281,7 @@ class ActiveVision(ExplorationPolicy):
         if new:
             self.attending, self.verges = new[0], 0
             return aim(new[0].position), "object", new[0].label, disparity
-        spots = salient_locations(
-            seen.unexplained_left, obs["head_left"].shape[:2], (K[0, 2], K[1, 2])
-        )
+        spots = salient_locations(seen.unexplained_left, seen.size, (K[0, 2], K[1, 2]))
         spot = most_salient(spots, K, pose, self.inhibition)
         point = None if spot is None else pixel_on_table(spot.xy, K, pose)
         if point is not None:

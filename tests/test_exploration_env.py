@@ -24,7 +24,8 @@ from ipbench.envs.ptu import STEP_RAD
 from ipbench.envs.sorting import InvalidActionError, ResetNeededError
 
 ID = "ipbench/Exploration-v0"
-SMALL = (120, 180)
+ID_V1 = "ipbench/Exploration-v1"
+SMALL = (128, 192)  # a centred fovea at every id's factor (1, 4)
 
 
 # -- scenes ---------------------------------------------------------------------------------
@@ -92,8 +93,8 @@ def test_scenes_are_deterministic_and_seeds_differ():
 def env(request):
     """The battery runs on every exploration id (tests/test_envs.py checks that every
     registered id is in a battery)."""
-    kwargs = {"scene": "complex", **ipbench.envs.EXPLORATION_IDS[request.param]}
-    env = gym.make(request.param, head_size=SMALL, render_mode="rgb_array", **kwargs).unwrapped
+    kwargs = {"scene": "complex", **ipbench.envs.EXPLORATION_IDS[request.param], "head_size": SMALL}
+    env = gym.make(request.param, render_mode="rgb_array", **kwargs).unwrapped
     yield env
     env.close()
 
@@ -108,7 +109,8 @@ def _action(gaze, kind=0, label=0, position=(0.0, 0.0, 0.0)):
 def test_registration():
     assert ID in gym.registry and ID not in ipbench.envs.UNDER_DEVELOPMENT  # released (13)
     assert ID not in ipbench.envs.ENV_IDS and ID in ipbench.envs.EXPLORATION_IDS
-    assert set(ipbench.envs.ALL_IDS) == set(ipbench.envs.ENV_IDS) | {ID}
+    assert set(ipbench.envs.ALL_IDS) == set(ipbench.envs.ENV_IDS) | {ID, ID_V1}
+    assert ID_V1 in ipbench.envs.UNDER_DEVELOPMENT
     assert set(ipbench.envs.ALL_IDS) <= set(gym.registry)
     assert gym.make(ID, scene="medium").unwrapped.config.scene == "medium"
 
@@ -133,7 +135,9 @@ def test_reset_is_deterministic_and_seeds_differ(env):
 def test_observations_are_in_the_space(env):
     obs, info = env.reset(seed=0)
     assert env.observation_space.contains(obs)
-    assert obs["head_left"].shape == (*SMALL, 3) and obs["head_left"].std() > 1.0
+    f = env.config.fovea_factor
+    assert obs["head_left"].shape == (SMALL[0] // f, SMALL[1] // f, 3)
+    assert obs["head_left"].std() > 1.0
     np.testing.assert_array_equal(env.render(), obs["head_left"])
     obs, *_ = env.step(_action(obs["head_qpos"] + [0.3, 0.1, -0.2, 0.2]))
     assert env.observation_space.contains(obs)

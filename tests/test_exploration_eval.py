@@ -102,3 +102,35 @@ def test_the_database_is_captured_at_the_episodes_head_size():
 def test_a_bad_head_size_says_what_is_valid(size):
     with pytest.raises(ExplorationEvalError, match=r"head_size must be \(height, width\)"):
         ExplorationEvalConfig(head_size=size)
+
+
+def test_an_id_brings_its_cameras_and_prints_to_the_episodes_and_the_database():
+    v0, v1 = ExplorationEvalConfig(), ExplorationEvalConfig(env_id="ipbench/Exploration-v1")
+    assert (v0.head_size, v0.fovea_factor, v0.database.upright_prints) == ((680, 1024), 1, False)
+    assert (v1.head_size, v1.fovea_factor) == ((3264, 4928), 4)
+    assert v1.database.head_size == (3264, 4928) and v1.database.upright_prints
+    # the released prints keep their cache key; the upright ones are another entry
+    same_size = DatabaseCaptureConfig(head_size=(3264, 4928))
+    assert DatabaseCaptureConfig(upright_prints=False).key() == DatabaseCaptureConfig().key()
+    assert v1.database.key() != same_size.key()
+    # v0's runs keep their fingerprint; the fovea alone makes another run
+    explicit = ExplorationEvalConfig(env_id="ipbench/Exploration-v0", fovea_factor=1)
+    assert explicit.fingerprint() == v0.fingerprint()
+    periphery = ExplorationEvalConfig(
+        env_id="ipbench/Exploration-v1", head_size=(816, 1232), fovea_factor=1
+    )
+    assert periphery.fingerprint() not in (v0.fingerprint(), v1.fingerprint())
+    assert periphery.database.upright_prints
+
+
+@pytest.mark.parametrize(
+    "kwargs, message",
+    [
+        ({"env_id": "ipbench/Exploration-v7"}, "valid: ipbench/Exploration-v0"),
+        ({"env_id": "ipbench/Exploration-v1", "head_size": (600, 900)}, "factor 4"),
+        ({"fovea_factor": 0}, "valid: an int >= 2"),
+    ],
+)
+def test_bad_ids_and_foveae_say_what_is_valid(kwargs, message):
+    with pytest.raises(ExplorationEvalError, match=message):
+        ExplorationEvalConfig(**kwargs)

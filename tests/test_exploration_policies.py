@@ -5,6 +5,8 @@ the same size, once per module, into a temporary cache."""
 
 from __future__ import annotations
 
+from types import SimpleNamespace
+
 import gymnasium as gym
 import numpy as np
 import pytest
@@ -15,7 +17,6 @@ from ipbench.eval.capture.exploration_database import (
     capture_views,
     load_or_build_database,
 )
-from ipbench.perception.features2d import detect
 from ipbench.policies.exploration import (
     EXPLORATION_POLICIES,
     HALT_AFTER,
@@ -27,7 +28,7 @@ from ipbench.policies.exploration import (
     verge,
 )
 from ipbench.policies.gaze import aim, pixel_on_table, verge_right
-from ipbench.policies.stereo_look import Candidate
+from ipbench.policies.stereo_look import Candidate, eye_features
 
 SIZE = (340, 512)
 CAPTURE = DatabaseCaptureConfig(head_size=SIZE, yaw_step_deg=90.0)
@@ -64,8 +65,11 @@ def test_vergence_brings_an_objects_disparity_under_two_pixels():
     obs, *_ = env.step({"gaze": gaze, "report": {"kind": 0, "label": 0, "position": [0, 0, 0]}})
     disparities = []
     for _ in range(4):
-        left, right = detect(obs["head_left"], "sift"), detect(obs["head_right"], "sift")
-        gaze, disparity = verge(obs, left, right)
+        left, _, size, _ = eye_features(obs, "left", "sift")
+        right, K_right, _, _ = eye_features(obs, "right", "sift")  # noqa: N806
+        rig = SimpleNamespace(K_right=K_right)
+        seen = SimpleNamespace(left=left, right=right, size=size, rig=rig)
+        gaze, disparity = verge(obs, seen)
         disparities.append(abs(disparity))
         if abs(disparity) < VERGENCE_GOAL_PX:
             break

@@ -29,6 +29,7 @@ import numpy as np
 
 from ipbench.assets.compose import HEAD_SIDES
 from ipbench.assets.objects import resting_poses
+from ipbench.assets.objects.object_model import ObjectModel
 from ipbench.envs.exploration_scene import (
     DATABASE_CLASSES,
     FRONT_AREA,
@@ -65,6 +66,7 @@ class DatabaseCaptureConfig:
     head_size : (height, width) px of the head images, as in the episodes.
     margin_px : the crop around the mask's box, px.
     classes : the database classes.
+    upright_prints : the objects' prints read upright (the episodes' ``ObjectModel``).
     """
 
     yaw_step_deg: float = 45.0
@@ -72,11 +74,15 @@ class DatabaseCaptureConfig:
     head_size: tuple[int, int] = (680, 1024)
     margin_px: int = 16
     classes: tuple[str, ...] = DATABASE_CLASSES
+    upright_prints: bool = False
 
     def key(self) -> str:
         """Hash of the protocol and of the objects it shows (their catalogue entries)."""
         objects = [repr(database_instance(c)) for c in self.classes]
-        text = json.dumps([CAPTURE_VERSION, asdict(self), objects], sort_keys=True, default=str)
+        settings = asdict(self)
+        if not self.upright_prints:  # the released prints: the key they always had
+            del settings["upright_prints"]
+        text = json.dumps([CAPTURE_VERSION, settings, objects], sort_keys=True, default=str)
         return hashlib.sha256(text.encode()).hexdigest()[:16]
 
 
@@ -94,7 +100,8 @@ def capture_views(label: str, config: DatabaseCaptureConfig) -> list[ObjectView]
     h, w = config.head_size
     views: list[ObjectView] = []
     for pose in resting_poses(inst)[: config.poses]:
-        model = build_model(_alone(label, np.asarray(pose.quat), 0.0))
+        objects = ObjectModel(upright_prints=config.upright_prints)
+        model = build_model(_alone(label, np.asarray(pose.quat), 0.0), objects=objects)
         data = mujoco.MjData(model)
         mujoco.mj_resetDataKeyframe(model, data, model.key("home").id)
         body = model.body("object_00").id

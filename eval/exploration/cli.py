@@ -1,8 +1,8 @@
 """The exploration commands of ``ipbench`` (thesis ch. 3).
 
 ipbench eval exploration [--scenes simple,medium,complex] [--policies ...] [--features sift,...]
-                         [--seeds A:B] [--budget N] [--head-size HxW] [--workers N] [--video]
-                         [--out DIR] [--cache DIR]
+                         [--seeds A:B] [--budget N] [--env ID] [--head-size HxW]
+                         [--fovea-factor F] [--workers N] [--video] [--out DIR] [--cache DIR]
 ipbench bench exploration [--features ...] [--cache DIR] [--json [FILE]]
 """
 
@@ -30,7 +30,7 @@ def add_eval_exploration(eval_sub) -> argparse.ArgumentParser:
         "exploration",
         help="explore table scenes with the stereo head and report objects (thesis Tables 3.2/3.3)",
         description="Runs every exploration policy with every feature type on every scene for "
-        "every seed of ipbench/Exploration-v0 (the same seeds for all: paired). The "
+        "every seed of an exploration id (the same seeds for all: paired). The "
         "recognition database of each feature type is captured by the head on first use and "
         "cached in --cache. Each finished episode is appended to OUT/episodes.jsonl, so an "
         "interrupted run resumes. Writes OUT/summary.json, OUT/exploration.md, OUT/recall.png "
@@ -52,10 +52,22 @@ def add_eval_exploration(eval_sub) -> argparse.ArgumentParser:
     )
     p.add_argument("--budget", type=int, default=30, help="saccades before an episode is cut")
     p.add_argument(
+        "--env",
+        default="ipbench/Exploration-v0",
+        help="the exploration id: {EXPLORATION_IDS}",
+    )
+    p.add_argument(
         "--head-size",
-        default="680x1024",
-        help="HEIGHTxWIDTH px of each head image; the database is captured at the same size "
-        "(the thesis' Nikon D5100: 3264x4928)",
+        default=None,
+        help="HEIGHTxWIDTH px each head camera renders (default: the id's, 680x1024 for v0, "
+        "3264x4928 for v1, the thesis' Nikon D5100); the database is captured at the same size",
+    )
+    p.add_argument(
+        "--fovea-factor",
+        type=int,
+        default=None,
+        help="1: whole frames; F > 1: foveated cameras, the field downsampled F times and its "
+        "central 1/F at full resolution (default: the id's, 1 for v0, 4 for v1)",
     )
     p.add_argument("--workers", type=int, default=1, help="episodes run in parallel")
     p.add_argument("--backend", default="process", help="one of {BACKENDS}")
@@ -113,7 +125,9 @@ def main_exploration(args) -> int:
             features=features,
             seeds=parse_seeds(args.seeds),
             saccade_budget=args.budget,
-            head_size=parse_size(args.head_size),
+            env_id=args.env,
+            head_size=None if args.head_size is None else parse_size(args.head_size),
+            fovea_factor=args.fovea_factor,
             workers=args.workers,
             backend=args.backend,
             ray_address=args.ray_address,

@@ -4,7 +4,8 @@ Policies x feature types x scenes x seeds, the same seeds for every policy (pair
 
 1. The recognition database of each feature type is loaded from the cache or built from views
    the head takes of each database object alone (:mod:`ipbench.eval.capture.exploration_database`).
-2. Episodes of ``ipbench/Exploration-v0`` run through the shared machinery
+2. Episodes of an exploration id (``ipbench/Exploration-v0`` by default) run through the
+   shared machinery
    (:mod:`ipbench.eval.episodes`: the resumable ``episodes.jsonl``, ``run.json``'s fingerprint,
    serial / process / Ray executors), each record written as soon as it finishes.
 3. ``summary.json``, ``exploration.md`` and ``recall.png``
@@ -27,8 +28,11 @@ import gymnasium as gym
 import numpy as np
 from threadpoolctl import threadpool_limits
 
-import ipbench.envs  # noqa: F401  (registers the environments)
+import ipbench.envs  # registers the environments
+from ipbench.envs.exploration import ExplorationConfig
 from ipbench.envs.exploration_scene import LEVELS
+from ipbench.envs.sensors import SensorError
+from ipbench.envs.sensors.foveation import fovea_window
 from ipbench.eval.capture.exploration_database import DatabaseCaptureConfig, load_or_build_database
 from ipbench.eval.episodes import BACKENDS, check_out, run_episodes, run_grid
 from ipbench.perception.features2d import FEATURE_TYPES
@@ -52,6 +56,7 @@ __all__ = [
 ]
 
 ENV_ID = "ipbench/Exploration-v0"
+"""The exploration id run by default."""
 EPISODE_VERSION = 1
 """Version of the episode record (part of the run fingerprint)."""
 
@@ -72,8 +77,12 @@ class ExplorationEvalConfig:
     seeds : episode seeds, the same for every policy and feature (paired); the thesis used 3
         random home positions per scene, we default to 10.
     saccade_budget : saccades before an episode is cut (the env's truncation).
-    head_size : (height, width) px of the head images; the recognition database is captured
-        at the same size (``database.head_size`` follows it: one cache entry per size).
+    env_id : the exploration id (:data:`ipbench.envs.EXPLORATION_IDS`).
+    head_size : (height, width) px each head camera renders; None: the id's. The recognition
+        database is captured at the same size (``database.head_size`` follows it: one cache
+        entry per size), with the id's objects (``database.upright_prints`` follows them).
+    fovea_factor : 1, or the foveation of the head cameras
+        (:mod:`ipbench.envs.sensors.foveation`); None: the id's.
     workers, backend, ray_address : parallel episodes (:mod:`ipbench.eval.episodes`).
     video : one MP4 per policy, feature and scene (its first seed).
     database : how the recognition database's views are captured.
@@ -84,7 +93,9 @@ class ExplorationEvalConfig:
     features: tuple[str, ...] = ("sift",)
     seeds: tuple[int, ...] = tuple(range(10))
     saccade_budget: int = 30
-    head_size: tuple[int, int] = (680, 1024)
+    env_id: str = ENV_ID
+    head_size: tuple[int, int] | None = None
+    fovea_factor: int | None = None
     workers: int = 1
     backend: str = "process"
     ray_address: str | None = None
@@ -109,14 +120,29 @@ class ExplorationEvalConfig:
             raise ExplorationEvalError(
                 f"seeds repeat: {', '.join(map(str, repeated))}; give each seed once"
             )
-        size = tuple(self.head_size)
+        if self.env_id not in ipbench.envs.EXPLORATION_IDS:
+            valid = ", ".join(ipbench.envs.EXPLORATION_IDS)
+            raise ExplorationEvalError(f"unknown exploration id {self.env_id!r}; valid: {valid}")
+        fixed = {**vars(ExplorationConfig()), **ipbench.envs.EXPLORATION_IDS[self.env_id]}
+        size = tuple(fixed["head_size"] if self.head_size is None else self.head_size)
         if len(size) != 2 or not all(isinstance(v, int) and v > 0 for v in size):
             raise ExplorationEvalError(
                 f"head_size must be (height, width) positive ints (px), got {self.head_size!r}"
             )
         object.__setattr__(self, "head_size", size)
-        if self.database.head_size != size:  # the database views are taken as the episodes'
-            object.__setattr__(self, "database", replace(self.database, head_size=size))
+        factor = fixed["fovea_factor"] if self.fovea_factor is None else self.fovea_factor
+        object.__setattr__(self, "fovea_factor", factor)
+        if factor != 1:
+            try:
+                fovea_window(*size, factor)
+            except SensorError as err:
+                raise ExplorationEvalError(str(err)) from None
+        upright = fixed["objects"].upright_prints
+        if (self.database.head_size, self.database.upright_prints) != (size, upright):
+            # the database views are taken as the episodes' cameras see the episodes' objects
+            object.__setattr__(
+                self, "database", replace(self.database, head_size=size, upright_prints=upright)
+            )
         if self.saccade_budget < 1:
             raise ExplorationEvalError(f"saccade_budget must be >= 1, got {self.saccade_budget}")
         if self.backend not in BACKENDS:
@@ -135,6 +161,8 @@ class ExplorationEvalConfig:
         drop = ("scenes", "policies", "features", "seeds", "workers", "backend", "ray_address")
         keep = {k: v for k, v in asdict(self).items() if k not in (*drop, "video")}
         keep["database"] = self.database.key()
+        if (keep["env_id"], keep["fovea_factor"]) == (ENV_ID, 1):  # the first runs' settings:
+            del keep["env_id"], keep["fovea_factor"]  # the fingerprint they always had
         text = json.dumps(
             [keep, EPISODE_VERSION, EXPLORATION_POLICY_VERSION], sort_keys=True, default=str
         )
@@ -194,7 +222,8 @@ def _video_frame(recorder, obs: dict, policy) -> None:
         verified = {(c.label, tuple(np.round(c.left_centre, 3))) for c in seen.candidates}
         for h in seen.recognition_left.hypotheses:
             key = (h.class_name, tuple(np.round(h.centre, 3)))
-            hypotheses.append((h.class_name, h.outline, key in verified))
+            outline = (np.asarray(h.outline, float) + 0.5) / seen.scale - 0.5  # image px
+            hypotheses.append((h.class_name, outline, key in verified))
     ior = getattr(policy, "inhibition", None)
     rays = [] if ior is None else [pose[:3, 3] + d for d in ior.directions]
     reported = [
@@ -213,9 +242,10 @@ def _run_episode(
 ) -> dict:
     t0 = time.perf_counter()
     env = gym.make(
-        ENV_ID,
+        config.env_id,
         scene=task.scene,
         head_size=tuple(config.head_size),
+        fovea_factor=config.fovea_factor,
         saccade_budget=config.saccade_budget,
     )
     policy = make_exploration_policy(task.policy, databases[task.feature])
@@ -326,7 +356,7 @@ def run_exploration_eval(
         out,
         fingerprint,
         {
-            "env": ENV_ID,
+            "env": config.env_id,
             "policy_version": EXPLORATION_POLICY_VERSION,
             "databases": {f: d.stats() for f, d in databases.items()},
             "config": asdict(config),
