@@ -21,6 +21,7 @@ from __future__ import annotations
 import hashlib
 import json
 import math
+import os
 from dataclasses import asdict, dataclass
 from pathlib import Path
 
@@ -170,10 +171,16 @@ def _all_views(cache: Path, config: DatabaseCaptureConfig, progress: bool) -> li
     for i, v in enumerate(views):
         arrays |= {f"image_{i}": v.image, f"mask_{i}": v.mask, f"label_{i}": np.str_(v.class_name)}
     cache.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_suffix(".tmp.npz")
+    tmp = _own_tmp(path)
     np.savez_compressed(tmp, **arrays)
     tmp.replace(path)
     return views
+
+
+def _own_tmp(path: Path) -> Path:
+    """This process' temporary file for ``path``: runs that build the same entry at once (two
+    evaluations sharing a cache) each write their own and the last rename wins (same content)."""
+    return path.with_name(f"{path.stem}.{os.getpid()}.tmp.npz")
 
 
 def load_or_build_database(
@@ -193,7 +200,7 @@ def load_or_build_database(
             print(f"ipbench: {err}; building the {feature_type} database again")
     database = ObjectDatabase.build(_all_views(cache, config, progress), feature_type)
     cache.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_suffix(".tmp.npz")
+    tmp = _own_tmp(path)
     database.save(tmp)
     tmp.replace(path)
     return database
