@@ -89,11 +89,9 @@ def _moved(features: Features, xy: np.ndarray, size_scale: float) -> Features:
 
 
 def _joined(a: Features, b: Features) -> Features:
+    fields = ("xy", "size", "angle", "response", "descriptors")
     return Features(
-        a.feature_type,
-        *(np.concatenate([getattr(a, k), getattr(b, k)]) for k in ("xy", "size", "angle")),
-        np.concatenate([a.response, b.response]),
-        np.concatenate([a.descriptors, b.descriptors]),
+        a.feature_type, *(np.concatenate([getattr(a, k), getattr(b, k)]) for k in fields)
     )
 
 

@@ -74,7 +74,8 @@ def test_a_small_run_writes_the_report_and_resumes(tmp_path, capsys):
     for r in records:
         assert r["true_positives"] + r["not_found"] == r["n_database"]
         assert len(r["recall_curve"]) == r["saccades"] + 1 and r["saccades"] <= 3
-    assert (out / "exploration.md").read_text().startswith("#")
+    title = (out / "exploration.md").read_text().splitlines()[0]
+    assert title.startswith("# ") and "ipbench/Exploration-v0 (" in title, title
     # resume: nothing runs again, the report is written anew
     run_exploration_eval(out, cache, SMALL, progress=False)
     assert "2 episodes already in" in capsys.readouterr().out

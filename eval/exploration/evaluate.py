@@ -391,5 +391,10 @@ def run_exploration_eval(
     )
     # the report covers every episode in the folder (all of one fingerprint): a benchmark run
     # in parts (a feature type at a time, say) ends with one report of all of them
-    write_exploration_report(log.records(), out, config.saccade_budget)
+    h, w = config.head_size
+    cameras = f"{w}x{h} px" + (
+        f", foveated {config.fovea_factor}x" if config.fovea_factor > 1 else ""
+    )
+    title = f"Active exploration on {config.env_id} ({cameras}): database objects found"
+    write_exploration_report(log.records(), out, config.saccade_budget, title)
     return json.loads((out / "summary.json").read_text())
