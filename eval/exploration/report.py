@@ -24,7 +24,8 @@ Output (:func:`write_exploration_report`), per scene, policy and feature type: t
 Tables 3.2/3.3 counts summed over seeds, the per-seed performance's mean with a 95 %
 percentile bootstrap interval, search efficiency (recall AUC, saccades and simulated seconds
 to find everything, re-fixation, localisation error, cycle time) and paired sign-flip tests
-of ``active-vision`` against each baseline over the seeds (:mod:`ipbench.eval.stats`).
+of ``active-vision`` against each baseline over the seeds (:mod:`ipbench.eval.stats`), and
+every comparison on disjoint seed sets (:mod:`ipbench.eval.exploration.seed_sets`).
 Figures use matplotlib's object API on an Agg canvas (no pyplot global state).
 """
 
@@ -52,6 +53,11 @@ from ipbench.eval.exploration.records import (
     check_budget,
     group_records,
     ordered,
+)
+from ipbench.eval.exploration.seed_sets import (
+    seed_set_groups,
+    seed_set_lines,
+    seed_set_records,
 )
 from ipbench.eval.stats import bootstrap_ci, paired_test
 
@@ -252,6 +258,7 @@ class ExplorationReportPaths:
     markdown: Path
     summary: Path
     recall_plot: Path
+    seed_sets: Path
 
 
 def write_exploration_report(
@@ -260,7 +267,8 @@ def write_exploration_report(
     budget: int,
     title: str = "Active exploration: database objects found",
 ) -> ExplorationReportPaths:
-    """Write ``summary.json``, ``exploration.md`` and ``recall.png`` into ``out``.
+    """Write ``summary.json``, ``seed_sets.json``, ``exploration.md`` and ``recall.png`` into
+    ``out``.
 
     Parameters
     ----------
@@ -286,7 +294,10 @@ def write_exploration_report(
     recall_path = out / "recall.png"
     _recall_png(recall_path, groups, budget)
 
-    lines = markdown_lines(summary, budget, title)
+    found = seed_set_groups(groups)
+    seed_sets_path = out / "seed_sets.json"
+    seed_sets_path.write_text(json.dumps(seed_set_records(found), indent=2, allow_nan=False) + "\n")
+    lines = markdown_lines(summary, budget, title) + seed_set_lines(found)
     markdown = out / "exploration.md"
     markdown.write_text("\n".join(lines).rstrip("\n") + "\n")
-    return ExplorationReportPaths(markdown, summary_path, recall_path)
+    return ExplorationReportPaths(markdown, summary_path, recall_path, seed_sets_path)

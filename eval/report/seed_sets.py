@@ -46,6 +46,8 @@ __all__ = [
     "Estimate",
     "Replication",
     "agreement",
+    "replicate",
+    "replication_table",
     "replications",
     "seed_set_groups",
     "seed_set_lines",
@@ -145,6 +147,31 @@ def _quantities(run: Run) -> dict[tuple[str, str], dict[int, float]]:
     return out
 
 
+def replicate(
+    scene: str, quantity: str, sets: Sequence[tuple[str, Mapping[int, float]]], level: bool
+) -> Replication | None:
+    """One quantity on disjoint seed sets: each set's estimate, the gap, the union.
+
+    Parameters
+    ----------
+    scene, quantity : the row's names.
+    sets : ``(name, {seed: value})`` per set, in order (values are fractions).
+    level : True for a level (an accuracy, a performance): no p against 0; False for a
+        difference or a score, tested against 0 over the union (sign flip).
+
+    Returns None when a set has fewer than two seeds (no interval, no gap).
+    """
+    if len(sets) < 2 or any(len(v) < 2 for _, v in sets):
+        return None
+    estimates = tuple(_estimate(name, v) for name, v in sets)
+    union = {s: x for _, v in sets for s, x in v.items()}
+    pooled = _estimate("all", union)
+    gap = two_sample_test(list(sets[0][1].values()), list(sets[-1][1].values()))
+    needed = {h: seeds_for_half_width(pooled.sd, h) for h in HALF_WIDTHS}
+    p = None if level else paired_test(union, dict.fromkeys(union, 0.0)).p_value
+    return Replication(scene, quantity, estimates, gap, pooled, p, needed)
+
+
 def replications(group: Sequence[Run]) -> list[Replication]:
     """Every scene and quantity that each run of ``group`` (:func:`seed_set_groups`) measured
     on two or more seeds, in the first run's order."""
@@ -152,15 +179,12 @@ def replications(group: Sequence[Run]) -> list[Replication]:
     out = []
     for key in per_run[0]:
         values = [q.get(key) for q in per_run]
-        if any(v is None or len(v) < 2 for v in values):
+        if any(v is None for v in values):
             continue
-        sets = tuple(_estimate(run.name, v) for run, v in zip(group, values, strict=True))
-        union = {s: x for v in values for s, x in v.items()}
-        pooled = _estimate("all", union)
-        gap = two_sample_test(list(values[0].values()), list(values[-1].values()))
-        needed = {h: seeds_for_half_width(pooled.sd, h) for h in HALF_WIDTHS}
-        p = None if key[1] == "random" else paired_test(union, dict.fromkeys(union, 0.0)).p_value
-        out.append(Replication(key[0], key[1], sets, gap, pooled, p, needed))
+        sets = [(run.name, v) for run, v in zip(group, values, strict=True)]
+        row = replicate(key[0], key[1], sets, level=key[1] == "random")
+        if row is not None:
+            out.append(row)
     return out
 
 
@@ -177,8 +201,8 @@ _HOW_TO_READ = (
 )
 
 
-def _value(quantity: str, mean: float, low: float, high: float) -> str:
-    if quantity == "random":
+def _value(level: bool, mean: float, low: float, high: float) -> str:
+    if level:
         return f"{100 * mean:.1f} [{100 * low:.1f}, {100 * high:.1f}]"
     return f"{points(mean)} {points_interval(low, high)}"
 
@@ -200,6 +224,31 @@ def agreement(rows: Sequence[Replication]) -> str:
     return f"The seed sets land apart beyond their intervals in {len(apart)} row(s): {listed}."
 
 
+def replication_table(rows: Sequence[Replication], set_names: Sequence[str]) -> list[str]:
+    """The markdown table of ``rows`` (one :func:`replicate` each, sets named ``set_names``):
+    each set, the gap and its p, the union with its p, the seeds ±2 and ±1 points need.
+    Levels in percent, differences and scores in percentage points."""
+    head = ["scene", "quantity", *set_names, "gap", "p", "all seeds"]
+    head += ["p (all)", "seeds for " + " / ".join(f"±{100 * h:g}" for h in HALF_WIDTHS)]
+    cells = []
+    for r in rows:
+        level = r.pooled_p is None
+        cells.append(
+            [
+                r.scene,
+                f"`{r.quantity}`",
+                *(_value(level, s.mean, s.ci_low, s.ci_high) for s in r.sets),
+                f"{points(r.gap.mean_diff)} {points_interval(r.gap.ci_low, r.gap.ci_high)}",
+                p_value(r.gap.p_value),
+                _value(level, r.pooled.mean, r.pooled.ci_low, r.pooled.ci_high)
+                + f" (n = {len(r.pooled.seeds)})",
+                p_value(r.pooled_p),
+                " / ".join(str(r.seeds_needed[h]) for h in HALF_WIDTHS),
+            ]
+        )
+    return table(head, cells)
+
+
 def _group_lines(group: tuple[Run, ...]) -> list[str]:
     rows = replications(group)
     if not rows:
@@ -208,24 +257,8 @@ def _group_lines(group: tuple[Run, ...]) -> list[str]:
         f"`{r.name}` on seeds {seeds_text(s.seeds)[1]}"
         for r, s in zip(group, rows[0].sets, strict=True)
     )
-    head = ["scene", "quantity", *(f"`{r.name}`" for r in group), "gap", "p", "all seeds"]
-    head += ["p (all)", "seeds for " + " / ".join(f"±{100 * h:g}" for h in HALF_WIDTHS)]
-    cells = []
-    for r in rows:
-        cells.append(
-            [
-                r.scene,
-                f"`{r.quantity}`",
-                *(_value(r.quantity, s.mean, s.ci_low, s.ci_high) for s in r.sets),
-                f"{points(r.gap.mean_diff)} {points_interval(r.gap.ci_low, r.gap.ci_high)}",
-                p_value(r.gap.p_value),
-                _value(r.quantity, r.pooled.mean, r.pooled.ci_low, r.pooled.ci_high)
-                + f" (n = {len(r.pooled.seeds)})",
-                p_value(r.pooled_p),
-                " / ".join(str(r.seeds_needed[h]) for h in HALF_WIDTHS),
-            ]
-        )
-    return [f"### Seed sets: {names}", "", *table(head, cells), "", agreement(rows), ""]
+    body = replication_table(rows, [f"`{r.name}`" for r in group])
+    return [f"### Seed sets: {names}", "", *body, "", agreement(rows), ""]
 
 
 def seed_set_lines(runs: Sequence[Run]) -> list[str]:
