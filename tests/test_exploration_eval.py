@@ -74,6 +74,13 @@ def test_a_small_run_writes_the_report_and_resumes(tmp_path, capsys):
     for r in records:
         assert r["true_positives"] + r["not_found"] == r["n_database"]
         assert len(r["recall_curve"]) == r["saccades"] + 1 and r["saccades"] <= 3
+        # recognition against eccentricity: one look per step, database instances in view;
+        # a true positive was recognised in some look (a policy reports what it saw)
+        assert r["looks"] == r["steps"] and r["sightings"]
+        assert all(0 <= e <= 180 and px > 0 for e, _, px in r["sightings"])
+        assert not r["true_positives"] or any(seen for _, seen, _ in r["sightings"])
+    bins = cell["eccentricity"]["bins"]
+    assert sum(b["n"] for b in bins) == len(records[0]["sightings"])
     title = (out / "exploration.md").read_text().splitlines()[0]
     assert title.startswith("# ") and "ipbench/Exploration-v0 (" in title, title
     # resume: nothing runs again, the report is written anew

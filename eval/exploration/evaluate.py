@@ -35,6 +35,7 @@ from ipbench.envs.sensors import SensorError
 from ipbench.envs.sensors.foveation import fovea_window
 from ipbench.eval.capture.exploration_database import DatabaseCaptureConfig, load_or_build_database
 from ipbench.eval.episodes import BACKENDS, check_out, run_episodes, run_grid
+from ipbench.eval.exploration.sightings import look_sightings
 from ipbench.perception.features2d import FEATURE_TYPES
 from ipbench.perception.object_database import ObjectDatabase
 from ipbench.perception.saliency import INHIBITION_RADIUS_RAD
@@ -265,8 +266,14 @@ def _run_episode(
     recovered = 0
     reasons: Counter = Counter()
     terminated = truncated = False
+    sightings: list[list] = []
+    false_candidates = looks = 0
     while not (terminated or truncated):
         action = policy.act(obs, info if task.policy in READS_INFO else None)
+        seen = look_sightings(policy.last_look, obs, info, config.fovea_factor)
+        sightings += [[e, r, p] for e, r, p in seen.sightings]
+        false_candidates += seen.false_candidates
+        looks += 1
         if recorder is not None:
             _video_frame(recorder, obs, policy)
         obs, _, terminated, truncated, info = env.step(action)
@@ -319,6 +326,9 @@ def _run_episode(
         "truncated": bool(truncated),
         "video": str(task.video) if task.video else None,
         "cycle_s": round((time.perf_counter() - t0) / max(steps, 1), 3),
+        "sightings": sightings,
+        "false_candidates": false_candidates,
+        "looks": looks,
     }
 
 

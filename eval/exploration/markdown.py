@@ -194,6 +194,44 @@ def _paired_table(summary: Mapping) -> list[str]:
     return [*_head([*head, "95 % CI", "p"]), *rows]
 
 
+_ECCENTRICITY_HOW_TO_READ = (
+    "How to read: at every look, each database instance visible in the left head image is a "
+    "sighting; its eccentricity is the angle between the camera's optical axis and the ray "
+    "to the instance's centre. A cell is the share of sightings in that band that the look "
+    "recognised (triangulated a candidate of the instance's class on it), with the number "
+    "of sightings. If recognition falls off away from the axis, where the head looks decides "
+    "what it recognises; if it is flat, one glance recognises as much as many. `false / "
+    "look`: candidates near no instance of their class, per look."
+)
+
+
+def _eccentricity_lines(summary: Mapping) -> list[str]:
+    rows = [
+        (scene, policy, feature, cell["eccentricity"])
+        for scene, by_policy in summary.items()
+        for policy, by_feature in by_policy.items()
+        for feature, cell in by_feature.items()
+        if "eccentricity" in cell
+    ]
+    if not rows:
+        return []
+    bins = rows[0][3]["bins"]
+    bands = [
+        f"{b['low_deg']:g}–{b['high_deg']:g}°" if b["high_deg"] < 180 else f"≥ {b['low_deg']:g}°"
+        for b in bins
+    ]
+    lines = ["## Recognition against eccentricity", "", _ECCENTRICITY_HOW_TO_READ, ""]
+    lines += _head(["scene", "feature", "policy", *bands, "false / look", "looks"])
+    for scene, policy, feature, e in sorted(rows, key=lambda r: FEATURES.index(r[2])):
+        cells = [
+            "–" if b["n"] == 0 else f"{100 * b['recognised'] / b['n']:.0f} % ({b['n']})"
+            for b in e["bins"]
+        ]
+        false = _num(e["false_candidates_per_look"], ".2f")
+        lines.append(_row([scene, feature, policy, *cells, false, e["looks"]]))
+    return [*lines, ""]
+
+
 def markdown_lines(summary: Mapping, budget: int, title: str) -> list[str]:
     """The lines of ``exploration.md`` for a summary (:func:`~ipbench.eval.exploration.report.
     summarize_exploration`'s shape) of episodes run with a saccade ``budget``."""
@@ -218,4 +256,4 @@ def markdown_lines(summary: Mapping, budget: int, title: str) -> list[str]:
     lines += ["![recall vs saccades](recall.png)", ""]
     lines += ["## Paired comparisons over seeds", "", _PAIRED_HOW_TO_READ, ""]
     lines += [*_paired_table(summary), ""]
-    return lines
+    return lines + _eccentricity_lines(summary)

@@ -93,6 +93,31 @@ _FIELDS: dict[str, tuple[str, Callable[[object], bool]]] = {
 _REQUIRED = ("scene", "policy", "feature", "seed", *_FIELDS)
 
 
+def _is_sighting(v: object) -> bool:
+    return (
+        isinstance(v, list)
+        and len(v) == 3
+        and _is_real(v[0])
+        and 0 <= v[0] <= 180
+        and isinstance(v[1], bool)
+        and _is_int(v[2])
+        and v[2] > 0
+    )
+
+
+_OPTIONAL: dict[str, tuple[str, Callable[[object], bool]]] = {
+    "sightings": (
+        "a list of [eccentricity_deg in [0, 180], recognised (bool), pixels (int > 0)]",
+        lambda v: isinstance(v, list) and all(_is_sighting(x) for x in v),
+    ),
+    "false_candidates": ("an int >= 0", lambda v: _is_int(v) and v >= 0),
+    "looks": ("an int >= 0", lambda v: _is_int(v) and v >= 0),
+}
+"""Fields of the records that carry recognition against eccentricity
+(:mod:`ipbench.eval.exploration.sightings`); older records lack them, and a record has all
+three or none."""
+
+
 def check_record(record: object, index: int) -> None:
     """Raise :class:`ExplorationReportError` naming the record and field on a bad record."""
     if not isinstance(record, Mapping):
@@ -114,6 +139,16 @@ def check_record(record: object, index: int) -> None:
     if not _is_int(record["seed"]):
         raise ExplorationReportError(f"{where}: seed must be an int, got {record['seed']!r}")
     for key, (what, ok) in _FIELDS.items():
+        if not ok(record[key]):
+            raise ExplorationReportError(f"{where}: {key} must be {what}, got {record[key]!r}")
+    present = [k for k in _OPTIONAL if k in record]
+    if present and len(present) != len(_OPTIONAL):
+        lacking = [k for k in _OPTIONAL if k not in record]
+        raise ExplorationReportError(
+            f"{where} has {', '.join(present)} but lacks {', '.join(lacking)} (all or none)"
+        )
+    for key in present:
+        what, ok = _OPTIONAL[key]
         if not ok(record[key]):
             raise ExplorationReportError(f"{where}: {key} must be {what}, got {record[key]!r}")
     tp, fp, nf = (record[k] for k in ("true_positives", "false_positives", "not_found"))

@@ -10,7 +10,8 @@ Input is one JSON record per exploration episode (``episodes.jsonl``, read with
      "saccades": int, "sim_time_s": float, "wall_time_s": float, "steps": int,
      "recall_curve": [float, ...], "saccades_to_all": int | null, "sim_s_to_all": float | null,
      "refixation_rate": float, "localisation_mm": [float, ...], "halted": bool,
-     "truncated": bool, "video": str | null, "cycle_s": float}
+     "truncated": bool, "video": str | null, "cycle_s": float,
+     "sightings": [[float, bool, int], ...], "false_candidates": int, "looks": int}
 
 ``n_database``: database instances in the scene; ``performance`` = TP / (TP + FP + not found)
 (:mod:`ipbench.envs.exploration_scoring`), a fraction; ``recovered``: true positives of
@@ -18,7 +19,9 @@ instances an earlier report took for another class; ``recall_curve[k]``: fractio
 database instances found after ``k`` saccades (``k = 0..saccades``); ``saccades_to_all``: the
 first ``k`` with recall 1; ``refixation_rate``: share of fixations within 4 deg of an earlier
 one; ``localisation_mm``: 3-D error of each true positive's report (mm); ``cycle_s``: mean wall
-seconds per step.
+seconds per step; ``sightings``, ``false_candidates``, ``looks``: recognition against
+eccentricity (:mod:`ipbench.eval.exploration.sightings`; optional: records written before
+they existed lack all three).
 
 Output (:func:`write_exploration_report`), per scene, policy and feature type: the thesis'
 Tables 3.2/3.3 counts summed over seeds, the per-seed performance's mean with a 95 %
@@ -59,6 +62,7 @@ from ipbench.eval.exploration.seed_sets import (
     seed_set_lines,
     seed_set_records,
 )
+from ipbench.eval.exploration.sightings import recognition_by_eccentricity
 from ipbench.eval.stats import bootstrap_ci, paired_test
 
 __all__ = [
@@ -136,6 +140,29 @@ def _cell_summary(runs: Sequence[Mapping], budget: int) -> dict:
         "cycle_s": float(np.mean([ep["cycle_s"] for ep in runs])),
         "halted": sum(bool(ep["halted"]) for ep in runs),
         "truncated": sum(bool(ep["truncated"]) for ep in runs),
+        **_eccentricity(runs),
+    }
+
+
+def _eccentricity(runs: Sequence[Mapping]) -> dict:
+    """Recognition against eccentricity over the episodes that carry sightings (none: {})."""
+    carrying = [ep for ep in runs if "sightings" in ep]
+    if not carrying:
+        return {}
+    bins = recognition_by_eccentricity(s for ep in carrying for s in ep["sightings"])
+    looks = sum(int(ep["looks"]) for ep in carrying)
+    return {
+        "eccentricity": {
+            "episodes": len(carrying),
+            "looks": looks,
+            "bins": [
+                {"low_deg": b.low_deg, "high_deg": b.high_deg, "n": b.n, "recognised": b.recognised}
+                for b in bins
+            ],
+            "false_candidates_per_look": (
+                sum(int(ep["false_candidates"]) for ep in carrying) / looks if looks else None
+            ),
+        }
     }
 
 
@@ -197,8 +224,11 @@ def summarize_exploration(episodes: Sequence[Mapping], budget: int) -> dict:
         seeds; None if none), ``refixation_rate`` (mean), ``localisation_mm_median`` (median
         over all true positives, mm; None without any), ``saccades_mean``,
         ``sim_time_s_mean``, ``wall_time_s_mean``, ``cycle_s`` (means per episode),
-        ``halted`` and ``truncated`` (episodes), and, for a baseline when ``active-vision``
-        ran the same scene and feature, ``vs_active_vision``: the paired test of
+        ``halted`` and ``truncated`` (episodes); when episodes carry sightings,
+        ``eccentricity``: ``episodes, looks``, ``bins`` (``low_deg, high_deg, n,
+        recognised`` per bin of ``sightings.ECCENTRICITY_BINS_DEG``) and
+        ``false_candidates_per_look``; and, for a baseline when ``active-vision`` ran the
+        same scene and feature, ``vs_active_vision``: the paired test of
         ``active-vision`` minus this policy on per-seed performance (``n, mean_diff, ci_low,
         ci_high, p_value, method``, fractions; None for undefined values).
 
