@@ -12,6 +12,11 @@ Measured on the complex scene (seed 0) of ``ipbench/Exploration-v0`` at the head
   feature type). The physics of the saccade and the ground-truth masks of ``info`` are not
   part of it.
 Targets: ``stereo_fps`` >= 50, ``cycle_s`` <= 0.5.
+
+Another exploration id (``env_id``, e.g. ``ipbench/Exploration-v1``) is measured the same
+way at its own head size, database and cameras — a foveated id's pair is rendered at full
+resolution and foveated, as its observation is — and its figures carry the id's version as a
+suffix (``stereo_fps_v1``, ``cycle_s_sift_v1``, ``cycle_s_v1``): the targets are v0's.
 """
 
 from __future__ import annotations
@@ -25,8 +30,9 @@ from threadpoolctl import threadpool_limits
 
 import ipbench.envs  # noqa: F401
 from ipbench.assets.compose import HEAD_SIDES
+from ipbench.envs.sensors.foveation import foveate
 from ipbench.eval.capture.exploration_database import load_or_build_database
-from ipbench.eval.exploration.evaluate import ENV_ID
+from ipbench.eval.exploration.evaluate import ENV_ID, ExplorationEvalConfig
 from ipbench.perception.features2d import FEATURE_TYPES
 from ipbench.policies.exploration import make_exploration_policy
 
@@ -34,13 +40,26 @@ __all__ = ["bench_exploration"]
 
 
 def bench_exploration(
-    cache: Path, features: tuple[str, ...] = FEATURE_TYPES, cycles: int = 9, frames: int = 20
+    cache: Path,
+    features: tuple[str, ...] = FEATURE_TYPES,
+    cycles: int = 9,
+    frames: int = 20,
+    env_id: str = ENV_ID,
+    head_size: tuple[int, int] | None = None,
 ) -> dict[str, float]:
-    """The figures of the module docstring (databases from ``cache``, built if missing)."""
+    """The figures of the module docstring (databases from ``cache``, built if missing);
+    ``head_size`` (H, W) px renders another size than the id's, its database captured alike.
+
+    Raises :class:`~ipbench.eval.exploration.evaluate.ExplorationEvalError` for an id that is
+    not an exploration id (the message lists them).
+    """
     import cv2
 
+    settings = ExplorationEvalConfig(env_id=env_id, head_size=head_size)  # and its fovea, prints
+    f = settings.fovea_factor
+    suffix = "" if env_id == ENV_ID else "_" + env_id.rsplit("-", 1)[-1]
     figures: dict[str, float] = {}
-    env = gym.make(ENV_ID, scene="complex")
+    env = gym.make(env_id, scene="complex", head_size=tuple(settings.head_size))
     try:
         with threadpool_limits(1):
             cv2.setNumThreads(1)
@@ -49,22 +68,24 @@ def bench_exploration(
             h, w = inner.config.head_size
 
             def render_pair() -> dict:
-                pair = dict(obs)
+                pair = dict(obs)  # the reset's K and poses: the head does not move
                 for side in HEAD_SIDES:
-                    pair[f"head_{side}"] = inner._renderer.render_rgb(
-                        inner.data, f"head_{side}_camera", w, h
-                    )
+                    image = inner._renderer.render_rgb(inner.data, f"head_{side}_camera", w, h)
+                    if f > 1:  # the images only; K is the reset observation's
+                        eye = foveate(image, np.eye(3), f)
+                        pair[f"head_{side}"], pair[f"head_{side}_fovea"] = eye.periphery, eye.fovea
+                    else:
+                        pair[f"head_{side}"] = image
                 return pair
 
             render_pair()
             t0 = time.perf_counter()
             for _ in range(frames):
                 render_pair()
-            figures["stereo_fps"] = round(frames / (time.perf_counter() - t0), 1)
+            figures[f"stereo_fps{suffix}"] = round(frames / (time.perf_counter() - t0), 1)
             for feature in features:
-                policy = make_exploration_policy(
-                    "active-vision", load_or_build_database(feature, cache, progress=False)
-                )
+                database = load_or_build_database(feature, cache, settings.database, progress=False)
+                policy = make_exploration_policy("active-vision", database)
                 policy.reset(0)
                 policy.act(render_pair())  # warm-up
                 walls = []
@@ -72,9 +93,9 @@ def bench_exploration(
                     t0 = time.perf_counter()
                     policy.act(render_pair())
                     walls.append(time.perf_counter() - t0)
-                figures[f"cycle_s_{feature}"] = round(float(np.median(walls)), 3)
+                figures[f"cycle_s_{feature}{suffix}"] = round(float(np.median(walls)), 3)
     finally:
         env.close()
-    if "cycle_s_sift" in figures:
-        figures["cycle_s"] = figures["cycle_s_sift"]
+    if f"cycle_s_sift{suffix}" in figures:
+        figures[f"cycle_s{suffix}"] = figures[f"cycle_s_sift{suffix}"]
     return figures

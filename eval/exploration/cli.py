@@ -85,12 +85,19 @@ def add_bench_exploration(bench_sub) -> argparse.ArgumentParser:
     p = bench_sub.add_parser(
         "exploration",
         help="stereo rendering fps and the saccade cycle's wall time per feature type",
-        description="Complex scene at 1024x680, one core: stereo pairs/s, and the "
-        "active-vision policy's cycle (render pair, features, recognition, stereo, decision) "
-        "per feature type (databases from --cache, captured if missing).",
+        description="Complex scene of the id at its head size, one core: stereo pairs/s, and "
+        "the active-vision policy's cycle (render pair, features, recognition, stereo, "
+        "decision) per feature type (databases from --cache, captured if missing). Figures of "
+        "another id than v0 end in its version (e.g. cycle_s_v1).",
         epilog="example: ipbench bench exploration --features sift,orb",
     )
     p.add_argument("--features", default="sift,kaze,akaze,orb", help="feature types: {FEATURES}")
+    p.add_argument(
+        "--env", default="ipbench/Exploration-v0", help="the exploration id: {EXPLORATION_IDS}"
+    )
+    p.add_argument(
+        "--head-size", default=None, help="HEIGHTxWIDTH px of each head camera (default: the id's)"
+    )
     p.add_argument(
         "--cache", type=Path, default=Path("results/cache"), help="database cache folder"
     )
@@ -106,9 +113,15 @@ def main_exploration(args) -> int:
     if args.command == "bench":
         from ipbench.eval.bench.exploration import bench_exploration
         from ipbench.eval.bench.sim import report
+        from ipbench.eval.exploration.evaluate import ExplorationEvalError
 
         writable(args.cache, "--cache")
-        print_figures(bench_exploration(args.cache, features), args.json, report)
+        try:
+            size = None if args.head_size is None else parse_size(args.head_size)
+            figures = bench_exploration(args.cache, features, env_id=args.env, head_size=size)
+        except ExplorationEvalError as err:
+            raise SystemExit(f"ipbench: {err}") from None
+        print_figures(figures, args.json, report)
         return 0
     from ipbench.envs.exploration_scene import LEVELS
     from ipbench.eval.exploration.evaluate import (
