@@ -150,7 +150,8 @@ def _quantities(run: Run) -> dict[tuple[str, str], dict[int, float]]:
 def replicate(
     scene: str, quantity: str, sets: Sequence[tuple[str, Mapping[int, float]]], level: bool
 ) -> Replication | None:
-    """One quantity on disjoint seed sets: each set's estimate, the gap, the union.
+    """One quantity on disjoint seed sets: each set's estimate, the gap, the union; None when
+    a set has fewer than two seeds (no interval, no gap).
 
     Parameters
     ----------
@@ -158,8 +159,6 @@ def replicate(
     sets : ``(name, {seed: value})`` per set, in order (values are fractions).
     level : True for a level (an accuracy, a performance): no p against 0; False for a
         difference or a score, tested against 0 over the union (sign flip).
-
-    Returns None when a set has fewer than two seeds (no interval, no gap).
     """
     if len(sets) < 2 or any(len(v) < 2 for _, v in sets):
         return None
