@@ -16,7 +16,9 @@ Targets: ``stereo_fps`` >= 50, ``cycle_s`` <= 0.5.
 Another exploration id (``env_id``, e.g. ``ipbench/Exploration-v1``) is measured the same
 way at its own head size, database and cameras — a foveated id's pair is rendered at full
 resolution and foveated, as its observation is — and its figures carry the id's version as a
-suffix (``stereo_fps_v1``, ``cycle_s_sift_v1``, ``cycle_s_v1``): the targets are v0's.
+suffix (``stereo_fps_v1``, ``cycle_s_sift_v1``, ``cycle_s_v1``): the targets are v0's at
+its own size. Another head size than the id's adds it (``stereo_fps_256x384``,
+``cycle_s_v1_1632x2464``): :func:`figure_suffix`.
 """
 
 from __future__ import annotations
@@ -36,7 +38,16 @@ from ipbench.eval.exploration.evaluate import ENV_ID, ExplorationEvalConfig
 from ipbench.perception.features2d import FEATURE_TYPES
 from ipbench.policies.exploration import make_exploration_policy
 
-__all__ = ["bench_exploration"]
+__all__ = ["bench_exploration", "figure_suffix"]
+
+
+def figure_suffix(env_id: str, head_size: tuple[int, int], id_size: tuple[int, int]) -> str:
+    """The figures' suffix: empty for v0 at its own size, else ``_<version>`` for another id
+    and ``_<H>x<W>`` for another size than the id's (``id_size``), in that order."""
+    suffix = "" if env_id == ENV_ID else "_" + env_id.rsplit("-", 1)[-1]
+    if tuple(head_size) != tuple(id_size):
+        suffix += f"_{head_size[0]}x{head_size[1]}"
+    return suffix
 
 
 def bench_exploration(
@@ -57,7 +68,8 @@ def bench_exploration(
 
     settings = ExplorationEvalConfig(env_id=env_id, head_size=head_size)  # and its fovea, prints
     f = settings.fovea_factor
-    suffix = "" if env_id == ENV_ID else "_" + env_id.rsplit("-", 1)[-1]
+    own = ExplorationEvalConfig(env_id=env_id).head_size
+    suffix = figure_suffix(env_id, settings.head_size, own)
     figures: dict[str, float] = {}
     env = gym.make(env_id, scene="complex", head_size=tuple(settings.head_size))
     try:
