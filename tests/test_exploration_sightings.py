@@ -153,7 +153,8 @@ def test_summary_and_markdown_pool_the_episodes_that_carry_sightings(tmp_path):
     md = write_exploration_report(records, tmp_path, 1).markdown.read_text()
     assert "## Recognition against eccentricity" in md
     assert (
-        "| simple | sift | active-vision | 100 % (2) | – | 0 % (1) | – | 0 % (1) | 0.20 | 5 |" in md
+        "| simple | sift | active-vision | 100 % (2) | – | 0 % (1) | – | 0 % (1) | 0.20 | 5 | 2 |"
+        in md
     )
     # without sightings: no section, no key
     cell = summarize_exploration([old], budget=1)["simple"]["active-vision"]["sift"]

@@ -201,7 +201,8 @@ _ECCENTRICITY_HOW_TO_READ = (
     "recognised (triangulated a candidate of the instance's class on it), with the number "
     "of sightings. If recognition falls off away from the axis, where the head looks decides "
     "what it recognises; if it is flat, one glance recognises as much as many. `false / "
-    "look`: candidates near no instance of their class, per look."
+    "look`: candidates near no instance of their class, per look; `episodes`: those that "
+    "recorded sightings (records written before they existed have none)."
 )
 
 
@@ -221,14 +222,14 @@ def _eccentricity_lines(summary: Mapping) -> list[str]:
         for b in bins
     ]
     lines = ["## Recognition against eccentricity", "", _ECCENTRICITY_HOW_TO_READ, ""]
-    lines += _head(["scene", "feature", "policy", *bands, "false / look", "looks"])
+    lines += _head(["scene", "feature", "policy", *bands, "false / look", "looks", "episodes"])
     for scene, policy, feature, e in sorted(rows, key=lambda r: FEATURES.index(r[2])):
         cells = [
             "–" if b["n"] == 0 else f"{100 * b['recognised'] / b['n']:.0f} % ({b['n']})"
             for b in e["bins"]
         ]
         false = _num(e["false_candidates_per_look"], ".2f")
-        lines.append(_row([scene, feature, policy, *cells, false, e["looks"]]))
+        lines.append(_row([scene, feature, policy, *cells, false, e["looks"], e["episodes"]]))
     return [*lines, ""]
 
 
