@@ -11,9 +11,9 @@ from pathlib import Path
 
 import pytest
 
+from ipbench.eval.markdown import GENERATED_MARK
 from ipbench.eval.report import readme as headline_readme
 from ipbench.eval.report.docs import PAGES, render_docs, report_docs
-from ipbench.eval.report.markdown import GENERATED_MARK
 from ipbench.eval.report.readme_calibration import END, START, calibration_block
 from ipbench.eval.report.runs import DocsReportError, discover
 

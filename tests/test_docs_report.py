@@ -8,8 +8,8 @@ from pathlib import Path
 
 import pytest
 
+from ipbench.eval.markdown import GENERATED_MARK
 from ipbench.eval.report.docs import PAGES, render_docs, report_docs
-from ipbench.eval.report.markdown import GENERATED_MARK
 from ipbench.eval.report.readme import END, START
 from ipbench.eval.report.runs import DocsReportError, discover
 

@@ -9,9 +9,10 @@ import math
 import numpy as np
 import pytest
 
+from ipbench.eval.replication import agreement
 from ipbench.eval.report.readme import headline_block
 from ipbench.eval.report.runs import Discovery, Run
-from ipbench.eval.report.seed_sets import agreement, replications, seed_set_groups, seed_set_lines
+from ipbench.eval.report.seed_sets import replications, seed_set_groups, seed_set_lines
 from ipbench.eval.sorting.curve import curve
 from ipbench.eval.stats import seeds_for_half_width, two_sample_test
 

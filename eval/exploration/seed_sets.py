@@ -7,7 +7,7 @@ seed sets of one run. Per scene and feature type, the seeds that every policy ra
 order into sets of :data:`SEED_SET_SIZE` (the last set takes the remainder; fewer than two
 sets' worth of seeds: no split); on each set, each quantity gets its mean and 95 % bootstrap
 interval, and the sets' gap its interval and permutation p
-(:func:`~ipbench.eval.report.seed_sets.replicate`, shared with the sorting report). The
+(:func:`~ipbench.eval.replication.replicate`, shared with the sorting report). The
 quantities, in percent or percentage points of the per-episode performance TP / (TP + FP +
 not found):
 
@@ -27,8 +27,8 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
 from ipbench.eval.exploration.records import FEATURES, POLICY_ORDER, PROPOSED, Groups, ordered
-from ipbench.eval.report.markdown import seeds_text
-from ipbench.eval.report.seed_sets import Replication, agreement, replicate, replication_table
+from ipbench.eval.markdown import seeds_text
+from ipbench.eval.replication import Replication, agreement, replicate, replication_table
 
 __all__ = [
     "GAZE_BASELINE",
@@ -72,7 +72,7 @@ class SeedSetGroup:
     ----------
     scene, feature : e.g. ``"simple"``, ``"sift"``.
     sets : the seed sets, in order (:func:`split_seeds`).
-    rows : one :class:`~ipbench.eval.report.seed_sets.Replication` per quantity (module
+    rows : one :class:`~ipbench.eval.replication.Replication` per quantity (module
         docstring), policies first.
     """
 

@@ -14,6 +14,7 @@ from __future__ import annotations
 import re
 from collections.abc import Mapping
 
+from ipbench.eval.markdown import generated_header, p_value, table
 from ipbench.eval.report.calibration_data import (
     FIGURE,
     RECONSTRUCTION_ROWS,
@@ -28,7 +29,6 @@ from ipbench.eval.report.calibration_data import (
     seeds_prose,
     thesis_text,
 )
-from ipbench.eval.report.markdown import generated_header, p_value, table
 from ipbench.eval.report.runs import Run
 
 __all__ = ["calibration_figure_name", "calibration_page", "comparison_name"]

@@ -15,7 +15,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
 
-from ipbench.eval.report.markdown import number, percent, seeds_text
+from ipbench.eval.markdown import number, percent, seeds_text
 
 __all__ = [
     "FIGURE",

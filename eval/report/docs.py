@@ -32,7 +32,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
 
-from ipbench.eval.report.markdown import GENERATED_MARK
+from ipbench.eval.markdown import GENERATED_MARK
 from ipbench.eval.report.runs import DocsReportError, discover
 
 __all__ = [

@@ -12,13 +12,13 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 
+from ipbench.eval.markdown import generated_header, seeds_text, table
 from ipbench.eval.report.calibration_data import (
     calibration_command,
     confidence_text,
     robot_text,
     seeds_prose,
 )
-from ipbench.eval.report.markdown import generated_header, seeds_text, table
 from ipbench.eval.report.perception import perception_command
 from ipbench.eval.report.runs import CheckFile, Discovery, Run
 from ipbench.eval.report.sorting import sorting_command

@@ -11,8 +11,8 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 
+from ipbench.eval.markdown import demote, generated_header, number, table
 from ipbench.eval.perception.in_hand_report import fusion_table, in_hand_ablation_table
-from ipbench.eval.report.markdown import demote, generated_header, number, table
 from ipbench.eval.report.runs import Run
 
 __all__ = ["perception_command", "perception_page"]

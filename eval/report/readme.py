@@ -19,7 +19,7 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 
-from ipbench.eval.report.markdown import (
+from ipbench.eval.markdown import (
     p_phrase,
     percent,
     percent_interval,

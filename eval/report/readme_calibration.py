@@ -17,6 +17,7 @@ holds until a calibration run is among the committed results.
 
 from __future__ import annotations
 
+from ipbench.eval.markdown import table
 from ipbench.eval.report.calibration_data import (
     RECONSTRUCTION_ROWS,
     calibration_command,
@@ -28,7 +29,6 @@ from ipbench.eval.report.calibration_data import (
     seeds_prose,
     thesis_text,
 )
-from ipbench.eval.report.markdown import table
 from ipbench.eval.report.markers import replace_marked
 from ipbench.eval.report.runs import Discovery, Run
 

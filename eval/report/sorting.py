@@ -13,7 +13,7 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 
-from ipbench.eval.report.markdown import (
+from ipbench.eval.markdown import (
     generated_header,
     number,
     p_value,
