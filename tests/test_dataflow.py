@@ -35,7 +35,7 @@ EVAL_ROOMS = {
     "sorting": ("core", "capture", "perception"),
     "exploration": ("core", "capture"),
     "calibration": ("core",),
-    "report": ("core", "sorting", "perception"),
+    "report": ("core", "sorting", "exploration", "perception"),
     "repro": ("core", "capture", "perception", "sorting", "exploration", "calibration"),
     "bench": ("core", "capture", "perception", "sorting", "exploration", "calibration"),
 }

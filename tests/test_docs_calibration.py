@@ -224,7 +224,7 @@ def test_a_single_seed_calibration_run_is_still_skipped(tmp_path):
     report = report_docs(root, tmp_path / "docs")
     assert report.notes == (
         "skipped `old-calibration`: a single-seed calibration run, made without `--seeds` (the "
-        "pages render sorting, perception and calibration runs)",
+        "pages render sorting, exploration, perception and calibration runs)",
     )
     assert "old-calibration" not in (tmp_path / "docs" / "calibration.md").read_text()
     with pytest.raises(DocsReportError, match="single-seed calibration run"):

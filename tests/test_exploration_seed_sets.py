@@ -7,62 +7,17 @@ import json
 
 import numpy as np
 import pytest
+from exploration_records import BUDGET, N, record, sample_records
 
 from ipbench.eval.exploration.records import group_records
 from ipbench.eval.exploration.report import write_exploration_report
 from ipbench.eval.exploration.seed_sets import (
     seed_set_groups,
+    seed_set_groups_from_records,
     seed_set_lines,
     seed_set_records,
     split_seeds,
 )
-
-BUDGET = 4
-N = 10  # database instances per episode
-
-
-def _record(scene: str, policy: str, seed: int, tp: int, fp: int) -> dict:
-    """A consistent SIFT record with ``tp`` of N instances found and ``fp`` false positives."""
-    return {
-        "scene": scene,
-        "policy": policy,
-        "feature": "sift",
-        "seed": seed,
-        "n_database": N,
-        "true_positives": tp,
-        "false_positives": fp,
-        "not_found": N - tp,
-        "performance": tp / (N + fp),
-        "recovered": 0,
-        "fp_reasons": {"wrong_class": fp, "already_reported": 0, "nothing_there": 0},
-        "saccades": 2,
-        "sim_time_s": 3.0,
-        "wall_time_s": 3.0,
-        "steps": 3,
-        "recall_curve": [0.0, tp / N / 2, tp / N],
-        "saccades_to_all": 2 if tp == N else None,
-        "sim_s_to_all": 3.0 if tp == N else None,
-        "refixation_rate": 0.0,
-        "localisation_mm": [10.0] * tp,
-        "halted": True,
-        "truncated": False,
-        "video": None,
-        "cycle_s": 0.5,
-    }
-
-
-def _records(seeds=range(20), late_drop: int = 0) -> list[dict]:
-    """active-vision finds 5 + seed % 3 instances; random-gaze 2 fewer, and ``late_drop``
-    fewer again on seeds 10 and up; oracle-gaze finds 8; raster-scan only ran seeds 0-9."""
-    out = []
-    for seed in seeds:
-        av = 5 + seed % 3
-        out.append(_record("simple", "active-vision", seed, av, 0))
-        out.append(_record("simple", "random-gaze", seed, av - 2 - late_drop * (seed >= 10), 0))
-        out.append(_record("simple", "oracle-gaze", seed, 8, 0))
-        if seed < 10:
-            out.append(_record("simple", "raster-scan", seed, av, 0))
-    return out
 
 
 def test_split_seeds_in_order_the_last_set_takes_the_remainder():
@@ -75,7 +30,7 @@ def test_split_seeds_in_order_the_last_set_takes_the_remainder():
 
 
 def test_policies_differences_and_gap_by_hand():
-    records = [r for r in _records(range(20), late_drop=1) if r["policy"] != "raster-scan"]
+    records = [r for r in sample_records(range(20), late_drop=1) if r["policy"] != "raster-scan"]
     (group,) = seed_set_groups(group_records(records))
     rows = {r.quantity: r for r in group.rows}
     assert list(rows) == [
@@ -104,31 +59,31 @@ def test_policies_differences_and_gap_by_hand():
 
 def test_a_policy_on_fewer_seeds_limits_the_split_to_the_shared_seeds():
     # raster-scan ran seeds 0-9 only: the four policies share 10 seeds, too few to split
-    assert seed_set_groups(group_records(_records(range(20)))) == []
+    assert seed_set_groups(group_records(sample_records(range(20)))) == []
     lines = seed_set_lines([])
     assert any("Not measured" in line and "--seeds 0:20" in line for line in lines)
     # with raster-scan on every seed, the split is back and has its rows
-    full = _records(range(20)) + [
-        _record("simple", "raster-scan", s, 5 + s % 3, 0) for s in range(10, 20)
+    full = sample_records(range(20)) + [
+        record("simple", "raster-scan", s, 5 + s % 3, 0) for s in range(10, 20)
     ]
     (group,) = seed_set_groups(group_records(full))
     assert "active-vision − raster-scan" in {r.quantity for r in group.rows}
 
 
 def test_the_verdict_names_a_comparison_whose_sets_land_apart():
-    records = [r for r in _records(range(20), late_drop=3) if r["policy"] != "raster-scan"]
+    records = [r for r in sample_records(range(20), late_drop=3) if r["policy"] != "raster-scan"]
     found = seed_set_groups(group_records(records))
     md = "\n".join(seed_set_lines(found))
     assert "### simple scene, SIFT" in md and "seeds 0–9 (10)" in md and "seeds 10–19 (10)" in md
     assert "land apart beyond their intervals" in md
     assert "simple active-vision − random-gaze: +30.0" in md
-    agree = [r for r in _records(range(20)) if r["policy"] != "raster-scan"]
+    agree = [r for r in sample_records(range(20)) if r["policy"] != "raster-scan"]
     md = "\n".join(seed_set_lines(seed_set_groups(group_records(agree))))
     assert "The seed sets agree" in md
 
 
 def test_report_writes_the_section_and_seed_sets_json(tmp_path):
-    records = [r for r in _records(range(20), late_drop=1) if r["policy"] != "raster-scan"]
+    records = [r for r in sample_records(range(20), late_drop=1) if r["policy"] != "raster-scan"]
     paths = write_exploration_report(records, tmp_path, BUDGET)
     assert "## Seed sets: does each comparison hold on disjoint seeds?" in (
         paths.markdown.read_text()
@@ -145,3 +100,14 @@ def test_report_writes_the_section_and_seed_sets_json(tmp_path):
     paths = write_exploration_report(few, tmp_path / "few", BUDGET)
     assert "Not measured" in paths.markdown.read_text()
     assert json.loads(paths.seed_sets.read_text()) == []
+
+
+@pytest.mark.parametrize("late_drop", [0, 3])
+def test_seed_sets_json_reads_back_into_the_same_section(late_drop):
+    records = [r for r in sample_records(range(25), late_drop) if r["policy"] != "raster-scan"]
+    found = seed_set_groups(group_records(records))
+    rows = json.loads(json.dumps(seed_set_records(found)))
+    back = seed_set_groups_from_records(rows)
+    assert [g.sets for g in back] == [g.sets for g in found]
+    assert seed_set_lines(back) == seed_set_lines(found)
+    assert seed_set_records(back) == rows

@@ -3,6 +3,7 @@
 
 from __future__ import annotations
 
+import cv2
 import gymnasium as gym
 import numpy as np
 import pytest
@@ -11,7 +12,8 @@ import ipbench.envs
 from ipbench.assets.objects.object_model import ObjectModel
 from ipbench.envs.exploration import EXPLORATION_V1
 from ipbench.envs.exploration_scene import build_model, sample_scene
-from ipbench.envs.sensors import SensorError
+from ipbench.envs.sensors import SensorError, SensorRenderer
+from ipbench.envs.sensors.cameras import fit_offscreen
 from ipbench.envs.sensors.foveation import (
     fovea_to_periphery,
     fovea_window,
@@ -143,3 +145,30 @@ def test_exploration_v1_looks_at_upright_prints_at_the_thesis_resolution():
     np.testing.assert_array_equal(released.tex_data, upright.tex_data)  # the same prints ...
     assert released.mesh_texcoord.shape == upright.mesh_texcoord.shape
     assert not np.array_equal(released.mesh_texcoord, upright.mesh_texcoord)  # ... turned
+
+
+def test_one_sample_per_pixel_already_integrates_the_surfaces():
+    """The fovea is one render sample per pixel; a sensor pixel integrates light over its area.
+    Texture sampling is filtered over each pixel's footprint, so on surfaces the render equals
+    its pixel-integrated (2x2 supersampled) version within a grey level; only outlines, where
+    the sensor cameras leave out multisampling, differ."""
+    env = gym.make("ipbench/Exploration-v1", scene="medium", head_size=(680, 1024)).unwrapped
+    env.reset(seed=1)
+    h, w = 680, 1024
+    fit_offscreen(env.model, 2 * w, 2 * h)
+    renderer = SensorRenderer(env.model)
+    try:
+        one = renderer.render_rgb(env.data, "head_left_camera", w, h).astype(float)
+        four = renderer.render_rgb(env.data, "head_left_camera", 2 * w, 2 * h).astype(float)
+        labels = renderer.render_segmentation(env.data, "head_left_camera", w, h)
+    finally:
+        renderer.close()
+        env.close()
+    integrated = four.reshape(h, 2, w, 2, 3).mean(axis=(1, 3))
+    labels = labels.reshape(h, w, -1)[..., 0].astype(np.float32)
+    block = np.ones((5, 5), np.uint8)
+    surface = cv2.dilate(labels, block) == cv2.erode(labels, block)
+    diff = np.abs(one - integrated).mean(axis=2)
+    assert surface.mean() > 0.85
+    assert diff[surface].mean() < 0.5
+    assert diff[~surface].mean() > 2  # outlines alias: the comparison sees a difference

@@ -367,6 +367,7 @@ def run_exploration_eval(
         fingerprint,
         {
             "env": config.env_id,
+            "env_status": ipbench.envs.env_status(config.env_id),
             "policy_version": EXPLORATION_POLICY_VERSION,
             "databases": {f: d.stats() for f, d in databases.items()},
             "config": asdict(config),

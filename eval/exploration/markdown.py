@@ -233,9 +233,12 @@ def _eccentricity_lines(summary: Mapping) -> list[str]:
     return [*lines, ""]
 
 
-def markdown_lines(summary: Mapping, budget: int, title: str) -> list[str]:
+def markdown_lines(
+    summary: Mapping, budget: int, title: str, recall_figure: str = "recall.png"
+) -> list[str]:
     """The lines of ``exploration.md`` for a summary (:func:`~ipbench.eval.exploration.report.
-    summarize_exploration`'s shape) of episodes run with a saccade ``budget``."""
+    summarize_exploration`'s shape) of episodes run with a saccade ``budget``; the recall
+    figure is linked as ``recall_figure`` (a path relative to the page)."""
     lines = [f"# {title}", "", _HOW_TO_READ, "", _FEATURE_NOTE, ""]
     lines += ["Thesis figures (pooled over the thesis' own scenes, not ours):", ""]
     lines += [*_thesis_table(), ""]
@@ -254,7 +257,7 @@ def markdown_lines(summary: Mapping, budget: int, title: str) -> list[str]:
     lines += ["## Search efficiency", "", _EFFICIENCY_HOW_TO_READ.format(budget=budget), ""]
     for scene, by_policy in summary.items():
         lines += [f"### {scene} scene", "", *_efficiency_table(by_policy), ""]
-    lines += ["![recall vs saccades](recall.png)", ""]
+    lines += [f"![recall vs saccades]({recall_figure})", ""]
     lines += ["## Paired comparisons over seeds", "", _PAIRED_HOW_TO_READ, ""]
     lines += [*_paired_table(summary), ""]
     return lines + _eccentricity_lines(summary)

@@ -17,7 +17,9 @@ not found):
   anywhere, whatever the policy that decides where — the measure of whether gaze matters.
 
 :func:`seed_set_lines` renders them as a section of ``exploration.md`` and
-:func:`seed_set_records` as the rows of ``seed_sets.json``.
+:func:`seed_set_records` as the rows of ``seed_sets.json``; :func:`seed_set_groups_from_records`
+reads those rows back, so pages rendered from ``seed_sets.json`` alone (the documentation's
+results pages) show the same section.
 """
 
 from __future__ import annotations
@@ -28,7 +30,15 @@ from dataclasses import dataclass
 
 from ipbench.eval.exploration.records import FEATURES, POLICY_ORDER, PROPOSED, Groups, ordered
 from ipbench.eval.markdown import seeds_text
-from ipbench.eval.replication import Replication, agreement, replicate, replication_table
+from ipbench.eval.replication import (
+    HALF_WIDTHS,
+    Estimate,
+    Replication,
+    agreement,
+    replicate,
+    replication_table,
+)
+from ipbench.eval.stats import TwoSampleTest, seeds_for_half_width
 
 __all__ = [
     "GAZE_BASELINE",
@@ -36,6 +46,7 @@ __all__ = [
     "SEED_SET_SIZE",
     "SeedSetGroup",
     "seed_set_groups",
+    "seed_set_groups_from_records",
     "seed_set_lines",
     "seed_set_records",
     "split_seeds",
@@ -200,3 +211,50 @@ def seed_set_records(found: Sequence[SeedSetGroup]) -> list[dict]:
                 }
             )
     return out
+
+
+def _number(value: float | None) -> float:
+    return math.nan if value is None else float(value)
+
+
+def seed_set_groups_from_records(records: Sequence[Mapping]) -> list[SeedSetGroup]:
+    """The groups whose :func:`seed_set_records` are ``records`` (rows of ``seed_sets.json``),
+    in their order. What the records do not keep (each set's per-seed standard deviation) is
+    NaN; :func:`seed_set_lines` of the result equals that of the original groups."""
+    found: dict[tuple[str, str], list[Replication]] = {}
+    sets: dict[tuple[str, str], tuple[tuple[int, ...], ...]] = {}
+    for r in records:
+        key = (str(r["scene"]), str(r["feature"]))
+        seed_sets = tuple(tuple(int(x) for x in s["seeds"]) for s in r["sets"])
+        estimates = tuple(
+            Estimate(
+                seeds_text(seeds)[1],
+                seeds,
+                _number(s["mean"]),
+                _number(s["ci_low"]),
+                _number(s["ci_high"]),
+                math.nan,
+            )
+            for seeds, s in zip(seed_sets, r["sets"], strict=True)
+        )
+        g, a = r["gap"], r["all"]
+        gap = TwoSampleTest(
+            len(seed_sets[0]),
+            len(seed_sets[-1]),
+            _number(g["mean_diff"]),
+            _number(g["ci_low"]),
+            _number(g["ci_high"]),
+            _number(g["p_value"]),
+        )
+        pooled_seeds = tuple(int(x) for x in a["seeds"])
+        sd = _number(a["sd"])
+        pooled = Estimate(
+            "all", pooled_seeds, _number(a["mean"]), _number(a["ci_low"]), _number(a["ci_high"]), sd
+        )
+        needed = {h: seeds_for_half_width(sd, h) for h in HALF_WIDTHS}
+        p = None if r["level"] else _number(a["p_value"])
+        found.setdefault(key, []).append(
+            Replication(key[0], str(r["quantity"]), estimates, gap, pooled, p, needed)
+        )
+        sets.setdefault(key, seed_sets)
+    return [SeedSetGroup(s, f, sets[s, f], tuple(rows)) for (s, f), rows in found.items()]

@@ -3,11 +3,14 @@
 ipbench report docs --from RESULTS_DIR [--out docs/results] [--readme README.md] [--headline RUN]
 
 Numbers measured by runs are never copied into the documentation by hand. This command finds
-the runs under ``--from`` (:mod:`ipbench.eval.report.runs`: sorting, perception and multi-seed
-calibration run folders, an ``ipbench check --json`` report) and writes into ``--out``:
+the runs under ``--from`` (:mod:`ipbench.eval.report.runs`: sorting, exploration, perception and
+multi-seed calibration run folders, an ``ipbench check --json`` report) and writes into
+``--out``:
 
 * ``index.md``: what was run, with what and on what platform (:mod:`ipbench.eval.report.index`);
 * ``sorting.md`` and its curve figures ``curve-<run>.png`` (:mod:`ipbench.eval.report.sorting`);
+* ``exploration.md`` and its recall figures ``exploration-<run>.png``
+  (:mod:`ipbench.eval.report.exploration`);
 * ``perception.md`` (:mod:`ipbench.eval.report.perception`);
 * ``calibration.md`` and its spread figures ``calibration-<run>.png``
   (:mod:`ipbench.eval.report.calibration`);
@@ -20,8 +23,8 @@ data. With ``--readme FILE`` the headline table (:mod:`ipbench.eval.report.readm
 text between the README's markers, and, when there is a calibration run, the calibration table
 (:mod:`ipbench.eval.report.readme_calibration`) the text between its own markers; nothing
 else. Everything is read and checked before anything is written; files of an earlier
-generation that this one does not write (under ``data/``, ``curve-*.png`` and
-``calibration-*.png``) are removed, when ``--out`` holds generated pages.
+generation that this one does not write (under ``data/``, ``curve-*.png``,
+``exploration-*.png`` and ``calibration-*.png``) are removed, when ``--out`` holds generated pages.
 """
 
 from __future__ import annotations
@@ -44,10 +47,16 @@ __all__ = [
     "report_docs",
 ]
 
-PAGES: tuple[str, ...] = ("index.md", "sorting.md", "perception.md", "calibration.md")
+PAGES: tuple[str, ...] = (
+    "index.md",
+    "sorting.md",
+    "exploration.md",
+    "perception.md",
+    "calibration.md",
+)
 """The pages written (each, even with no run of its kind: the site's navigation lists them)."""
 _OWN_SUFFIXES = (".json", ".png")
-_OWN_FIGURES = ("curve-*.png", "calibration-*.png")
+_OWN_FIGURES = ("curve-*.png", "exploration-*.png", "calibration-*.png")
 
 
 @dataclass(frozen=True)
@@ -66,20 +75,26 @@ def render_docs(found) -> dict[str, bytes]:
     path relative to ``--out`` -> content."""
     from ipbench.eval.report.calibration import calibration_figure_name, calibration_page
     from ipbench.eval.report.calibration_data import FIGURE
+    from ipbench.eval.report.exploration import exploration_figure_name, exploration_page
     from ipbench.eval.report.index import index_page
     from ipbench.eval.report.perception import perception_page
     from ipbench.eval.report.sorting import curve_figure_name, sorting_page
 
     sorting, calibration = found.of_kind("sorting"), found.of_kind("calibration")
+    exploration = found.of_kind("exploration")
     files = {
         "index.md": index_page(found).encode(),
         "sorting.md": sorting_page(sorting).encode(),
+        "exploration.md": exploration_page(exploration).encode(),
         "perception.md": perception_page(found.of_kind("perception")).encode(),
         "calibration.md": calibration_page(calibration).encode(),
     }
     for run in sorting:
         if "curve.png" in run.files and "curve.json" in run.files:
             files[curve_figure_name(run)] = run.files["curve.png"]
+    for run in exploration:
+        if "recall.png" in run.files:
+            files[exploration_figure_name(run)] = run.files["recall.png"]
     for run in calibration:
         if FIGURE in run.files:
             files[calibration_figure_name(run)] = run.files[FIGURE]
@@ -180,12 +195,15 @@ def add_report_parser(sub) -> argparse.ArgumentParser:
     docs = targets.add_parser(
         "docs",
         help="render the docs' results pages (and the README's headline) from results files",
-        description="Finds the run folders under --from (ipbench eval sorting: summary.json + "
-        "run.json; ipbench eval perception and ipbench eval calibration --seeds: metrics.json; "
-        "an ipbench check --json report) and writes OUT/index.md (what was run: commands, env "
-        "id, policy version, perception keys, thresholds, seeds, platform and check verdict), "
+        description="Finds the run folders under --from (ipbench eval sorting and ipbench eval "
+        "exploration: summary.json + run.json; ipbench eval perception and ipbench eval "
+        "calibration --seeds: metrics.json; an ipbench check --json report) and writes "
+        "OUT/index.md (what was run: commands, env id, policy version, perception keys, "
+        "thresholds, seeds, platform and check verdict), "
         "OUT/sorting.md (accuracy with intervals, paired differences against random, the "
-        "accuracy-inspection curve), OUT/perception.md and OUT/calibration.md (reconstruction "
+        "accuracy-inspection curve), OUT/exploration.md (objects found beside the thesis' "
+        "Tables 3.2/3.3, search efficiency, recognition against eccentricity, comparisons on "
+        "disjoint seed sets), OUT/perception.md and OUT/calibration.md (reconstruction "
         "errors over seeds beside the thesis', paired comparisons, self-calibration, hand-eye "
         "methods), each stamped as generated, and copies the files they were rendered from "
         "into OUT/data, so that --from OUT/data reproduces the pages byte for byte. --readme "

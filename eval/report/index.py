@@ -2,10 +2,11 @@
 run and on what.
 
 For each run (:mod:`ipbench.eval.report.runs`): the command line that makes it, the environment
-id, the policy code version, the perception dataset and model keys, the inspection thresholds
-and how they were chosen, the seeds (for a calibration run: the seeds, the simulated cell and
-the intervals' confidence); and, when ``--from`` holds an ``ipbench check --json`` report, its
-verdict and the platform it records.
+id (and whether it was released when the run was made), the policy code version, the
+perception dataset and model keys (sorting), the cameras and recognition databases
+(exploration), the inspection thresholds and how they were chosen, the seeds (for a
+calibration run: the seeds, the simulated cell and the intervals' confidence); and, when
+``--from`` holds an ``ipbench check --json`` report, its verdict and the platform it records.
 """
 
 from __future__ import annotations
@@ -19,6 +20,7 @@ from ipbench.eval.report.calibration_data import (
     robot_text,
     seeds_prose,
 )
+from ipbench.eval.report.exploration import exploration_items
 from ipbench.eval.report.perception import perception_command
 from ipbench.eval.report.runs import CheckFile, Discovery, Run
 from ipbench.eval.report.sorting import sorting_command
@@ -106,6 +108,14 @@ def _sorting_items(run: Run) -> list[str]:
     return items
 
 
+def _exploration_run_items(run: Run) -> list[str]:
+    info = run.json("run.json") or {}
+    env = info.get("env", "not recorded")
+    status = _UNDER_DEVELOPMENT.get(info.get("env_status"), "")
+    command, *rest = exploration_items(run)
+    return [command, f"Environment: `{env}`{status}", *rest]
+
+
 def _perception_items(run: Run) -> list[str]:
     metrics = run.json("metrics.json") or {}
     dataset = (run.json("dataset.json") or {}).get("dataset_key", "not recorded")
@@ -180,7 +190,8 @@ def index_page(found: Discovery) -> str:
     lines = generated_header("Results", sources)
     lines += [
         "What was run, with what, and on what platform; the numbers are on the pages "
-        "[Sorting](sorting.md), [Perception](perception.md) and [Calibration](calibration.md). "
+        "[Sorting](sorting.md), [Exploration](exploration.md), [Perception](perception.md) and "
+        "[Calibration](calibration.md). "
         "Every page is generated from the results files, whose copies are kept beside them in "
         "`data/`.",
         "",
@@ -188,6 +199,7 @@ def index_page(found: Discovery) -> str:
     ]
     for kind, title, items in (
         ("sorting", "Sorting runs", _sorting_items),
+        ("exploration", "Exploration runs", _exploration_run_items),
         ("perception", "Perception runs", _perception_items),
         ("calibration", "Calibration runs", _calibration_items),
     ):

@@ -8,7 +8,9 @@ A run is a folder recognised by its files:
   read: ``segmentation.json`` and the dataset key of ``perception.md``;
 * **calibration** (``ipbench eval calibration --seeds A:B``): ``metrics.json`` with ``seeds``
   and distributions over them; also read: ``spread.png``;
-* **exploration** and single-seed calibration runs are recognised, and skipped with a note;
+* **exploration** (``ipbench eval exploration``): ``summary.json`` and ``run.json`` with the
+  recognition ``databases``; also read: ``seed_sets.json`` and ``recall.png``;
+* single-seed calibration runs are recognised, and skipped with a note;
 
 and an ``ipbench check --json FILE`` report is any JSON file outside the runs with a
 ``verdict``, ``stages`` and ``platform``. Folders are searched up to :data:`MAX_DEPTH` levels
@@ -44,8 +46,9 @@ __all__ = [
 MAX_DEPTH = 4
 """How many folder levels under ``--from`` are searched for runs."""
 EXPECTED = (
-    "run folders of `ipbench eval sorting` (summary.json + run.json), `ipbench eval perception` "
-    "or `calibration --seeds` (metrics.json), and optionally an `ipbench check --json` report"
+    "run folders of `ipbench eval sorting` or `exploration` (summary.json + run.json), "
+    "`ipbench eval perception` or `calibration --seeds` (metrics.json), and optionally an "
+    "`ipbench check --json` report"
 )
 """What ``--from`` should hold, in words (for the errors)."""
 _MAX_CHECK_BYTES = 2_000_000
@@ -102,7 +105,8 @@ class Discovery:
     notes: tuple[str, ...]
 
     def of_kind(self, kind: str) -> tuple[Run, ...]:
-        """The runs of ``kind`` (``sorting``, ``perception``, ``calibration``)."""
+        """The runs of ``kind`` (``sorting``, ``exploration``, ``perception``,
+        ``calibration``)."""
         return tuple(r for r in self.runs if r.kind == kind)
 
 
@@ -183,8 +187,29 @@ def _perception_files(folder: Path, metrics: Mapping) -> dict[str, bytes]:
     return files
 
 
+def _exploration_files(folder: Path) -> dict[str, bytes]:
+    files = {name: (folder / name).read_bytes() for name in ("summary.json", "run.json")}
+    for name in ("seed_sets.json", "recall.png"):
+        if (folder / name).is_file():
+            files[name] = (folder / name).read_bytes()
+    if "seed_sets.json" in files:
+        try:
+            rows = json.loads(files["seed_sets.json"])
+        except (UnicodeDecodeError, json.JSONDecodeError) as err:
+            raise DocsReportError(f"cannot read {folder / 'seed_sets.json'}: {err}") from err
+        if not isinstance(rows, list):
+            raise DocsReportError(
+                f"{folder / 'seed_sets.json'} holds a {type(rows).__name__}, expected a list of "
+                "rows (as `ipbench eval exploration` writes)"
+            )
+    return files
+
+
 def _skipped(name: str, kind: str) -> str:
-    return f"skipped `{name}`: {kind} (the pages render sorting, perception and calibration runs)"
+    return (
+        f"skipped `{name}`: {kind} (the pages render sorting, exploration, perception and "
+        "calibration runs)"
+    )
 
 
 def _classify(folder: Path, name: str) -> tuple[Run | None, str | None] | None:
@@ -193,9 +218,9 @@ def _classify(folder: Path, name: str) -> tuple[Run | None, str | None] | None:
     has = {p.name for p in folder.iterdir() if p.is_file()}
     if {"summary.json", "run.json"} <= has:
         run = _load(folder / "run.json")
-        if "databases" in run or "exploration.md" in has:
-            return None, _skipped(name, "an exploration run")
         _load(folder / "summary.json")
+        if "databases" in run or "exploration.md" in has:
+            return Run("exploration", name, _exploration_files(folder)), None
         return Run("sorting", name, _sorting_files(folder, run)), None
     if "metrics.json" in has:
         metrics = _load(folder / "metrics.json")
