@@ -12,7 +12,7 @@ from exploration_records import BUDGET, sample_records
 from ipbench.eval.exploration.report import write_exploration_report
 from ipbench.eval.markdown import GENERATED_MARK
 from ipbench.eval.report.docs import PAGES, report_docs
-from ipbench.eval.report.runs import DocsReportError
+from ipbench.eval.report.runs import Discovery, DocsReportError, discover
 
 
 def _exploration_run(folder: Path, status: str = "released") -> None:
@@ -120,3 +120,24 @@ def test_an_unreadable_seed_sets_file_is_a_clear_error_and_writes_nothing(result
     with pytest.raises(DocsReportError, match="ipbench eval exploration"):
         report_docs(results, out)
     assert not out.exists()
+
+
+def test_the_readme_block_quotes_the_run_and_leaves_the_rest(results, tmp_path):
+    from ipbench.eval.report.readme_exploration import END, START, update_readme
+
+    found = discover(results)
+    before = f"# Title\n\nhand-written\n{START}\nold\n{END}\nafter\n"
+    text = update_readme(before, found, "docs/exploration.md")
+    assert text.startswith("# Title\n\nhand-written\n" + START) and text.endswith(END + "\nafter\n")
+    assert "old" not in text and "from the run `exploration/v1`" in text
+    summary = json.loads((results / "exploration" / "v1" / "summary.json").read_text())
+    cell = summary["simple"]["oracle-gaze"]["sift"]  # oracle-gaze finds 8 of 10 on every seed
+    assert cell["performance_mean"] == pytest.approx(0.8) and "| 80.0 % [80.0, 80.0] |" in text
+    # random-gaze finds 2 fewer than active-vision, 3 more fewer on seeds 10-19: -3.5 on average
+    assert "| +35.0 [" in text and "| +3.5 [" not in text.replace("+35.0", "")
+    assert "simple, SIFT, seeds 0–9 (10) and 10–19 (10): the seed sets land apart" in text
+    assert "[Results: exploration](docs/exploration.md)" in text
+    with pytest.raises(DocsReportError, match="exploration markers"):
+        update_readme("# Title\n", found, "docs/exploration.md")
+    nothing = Discovery((), None, ())
+    assert update_readme(before, nothing, "x.md") == before  # no exploration run: as it was

@@ -21,10 +21,12 @@ deterministic and reads nothing but those files, so ``ipbench report docs --from
 docs/results/data`` reproduces the pages byte for byte: the pages cannot drift from their
 data. With ``--readme FILE`` the headline table (:mod:`ipbench.eval.report.readme`) replaces the
 text between the README's markers, and, when there is a calibration run, the calibration table
-(:mod:`ipbench.eval.report.readme_calibration`) the text between its own markers; nothing
-else. Everything is read and checked before anything is written; files of an earlier
-generation that this one does not write (under ``data/``, ``curve-*.png``,
-``exploration-*.png`` and ``calibration-*.png``) are removed, when ``--out`` holds generated pages.
+(:mod:`ipbench.eval.report.readme_calibration`) the text between its own markers, and when
+there is an exploration run, the exploration table
+(:mod:`ipbench.eval.report.readme_exploration`) the text between its own; nothing else.
+Everything is read and checked before anything is written; files of an earlier generation that
+this one does not write (under ``data/``, ``curve-*.png``, ``exploration-*.png`` and
+``calibration-*.png``) are removed, when ``--out`` holds generated pages.
 """
 
 from __future__ import annotations
@@ -155,6 +157,7 @@ def report_docs(
     if readme is not None:
         from ipbench.eval.report.readme import headline_block, replace_block
         from ipbench.eval.report.readme_calibration import update_readme
+        from ipbench.eval.report.readme_exploration import update_readme as update_exploration
 
         readme = Path(readme)
         try:
@@ -166,6 +169,8 @@ def report_docs(
         readme_text = replace_block(text, headline_block(found, link, headline), str(readme))
         link = Path(os.path.relpath(out / "calibration.md", readme.parent)).as_posix()
         readme_text = update_readme(readme_text, found, link, str(readme))
+        link = Path(os.path.relpath(out / "exploration.md", readme.parent)).as_posix()
+        readme_text = update_exploration(readme_text, found, link, str(readme))
     stale = _stale(out, files)
     written, unchanged = [], []
     for name, content in files.items():
@@ -210,7 +215,8 @@ def add_report_parser(sub) -> argparse.ArgumentParser:
         "replaces the text between the README's results:headline:start and "
         "results:headline:end markers (HTML comments) with the headline table and, when there "
         "is a calibration run, the text between results:calibration:start and "
-        "results:calibration:end with the calibration table.",
+        "results:calibration:end with the calibration table (and likewise "
+        "results:exploration:start/end with the exploration table).",
         epilog="example: ipbench report docs --from results --readme README.md",
         formatter_class=report.formatter_class,
     )
