@@ -87,8 +87,9 @@ def exploration_items(run: Run) -> list[str]:
         f"Policy code version: {info.get('policy_version', 'not recorded')} "
         "(`ipbench.policies.exploration`)",
         f"Recognition databases: {databases or 'not recorded'}",
-        "Seeds: the tables give each cell's (every episode in the run's folder, paired over "
-        f"seeds); the last command's: {seeds_text(config.get('seeds', []))[1]}",
+        f"Seeds: {seeds_text(config.get('seeds', []))[1]} in the command; the report covers "
+        "every episode in the run's folder, and each table gives its cells' seeds (the same "
+        "for every policy: paired)",
         f"Run fingerprint: `{info.get('fingerprint', 'not recorded')}`",
     ]
 
