@@ -23,9 +23,9 @@ which v0/v1 ids refuse. ``-v3`` ids (:data:`V3_IDS`, under development, see
 the stereo head explores a table scene and reports the objects it recognises
 (:mod:`ipbench.envs.exploration`; ``gym.make("ipbench/Exploration-v0", scene="complex")``).
 It is released and frozen: a change of behaviour gets a new version; options whose default
-keeps the behaviour, such as ``extrinsics``, may be added. ``ipbench/Exploration-v1`` (under
-development) looks at the thesis' resolution through foveated cameras, with upright prints
-(:data:`ipbench.envs.exploration.EXPLORATION_V1`).
+keeps the behaviour, such as ``extrinsics``, may be added. ``ipbench/Exploration-v1``, released
+and frozen as well, looks at the thesis' resolution through foveated cameras, with upright
+prints (:data:`ipbench.envs.exploration.EXPLORATION_V1`).
 :data:`ALL_IDS` lists every registered ipbench id.
 """
 
@@ -87,7 +87,7 @@ EXPLORATION_IDS: dict[str, dict] = {
 ALL_IDS: tuple[str, ...] = (*ENV_IDS, *EXPLORATION_IDS)
 """Every registered ipbench id."""
 
-UNDER_DEVELOPMENT: tuple[str, ...] = (*V3_IDS, "ipbench/Exploration-v1")
+UNDER_DEVELOPMENT: tuple[str, ...] = V3_IDS
 """Ids whose behaviour may still change until their headline measurement releases them; every
 other id is released and frozen (``tests/test_released_ids.py``)."""
 

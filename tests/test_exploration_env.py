@@ -107,10 +107,11 @@ def _action(gaze, kind=0, label=0, position=(0.0, 0.0, 0.0)):
 
 
 def test_registration():
-    assert ID in gym.registry and ID not in ipbench.envs.UNDER_DEVELOPMENT  # released (13)
+    assert ID in gym.registry and ID_V1 in gym.registry
+    assert ID not in ipbench.envs.UNDER_DEVELOPMENT and ID_V1 not in ipbench.envs.UNDER_DEVELOPMENT
+    assert ipbench.envs.env_status(ID_V1) == "released"
     assert ID not in ipbench.envs.ENV_IDS and ID in ipbench.envs.EXPLORATION_IDS
     assert set(ipbench.envs.ALL_IDS) == set(ipbench.envs.ENV_IDS) | {ID, ID_V1}
-    assert ID_V1 in ipbench.envs.UNDER_DEVELOPMENT
     assert set(ipbench.envs.ALL_IDS) <= set(gym.registry)
     assert gym.make(ID, scene="medium").unwrapped.config.scene == "medium"
 

@@ -1,6 +1,6 @@
 """A released id never changes: each released id's observations for fixed seeds and one step
 are those recorded when it was released (``tests/data/<family>_<v>_digests.json``: Sorting v1
-before the v2 work, v2 and Exploration v0 each at its release).
+before the v2 work; v2, Exploration v0 and Exploration v1 each at its release).
 
 Rendering (Mesa llvmpipe) and contact physics are bit-exact within a platform family (the
 same :func:`fingerprint`: CPU model, the kernels numpy and OpenBLAS dispatch to, library
@@ -68,6 +68,7 @@ RELEASED: dict[str, list[tuple[str, int]]] = {
     "ipbench/Sorting-v1": STANDARD,
     "ipbench/Sorting-v2": [*STANDARD, ("pile", 0), ("pile", 7)],
     "ipbench/Exploration-v0": [("simple", 0), ("complex", 7)],
+    "ipbench/Exploration-v1": [("simple", 0), ("complex", 7)],
 }
 """The released ids and the (scene, seed) cases recorded for each."""
 STAGES = ("reset", "step")
