@@ -54,11 +54,12 @@ def _valid_names() -> dict[str, tuple[str, ...]]:
     from ipbench.eval.sorting.evaluate import BACKENDS
     from ipbench.perception.features2d import FEATURE_TYPES
     from ipbench.policies import FUSIONS, POLICIES
-    from ipbench.policies.exploration import EXPLORATION_POLICIES
+    from ipbench.policies.exploration import EXPLORATION_ABLATIONS, EXPLORATION_POLICIES
 
     return {
         "{LEVELS}": tuple(LEVELS),
         "{EXPLORATION_POLICIES}": EXPLORATION_POLICIES,
+        "{EXPLORATION_ABLATIONS}": EXPLORATION_ABLATIONS,
         "{FEATURES}": FEATURE_TYPES,
         "{ENV_IDS}": tuple(ENV_IDS),
         "{EXPLORATION_IDS}": tuple(EXPLORATION_IDS),

@@ -13,6 +13,10 @@ step's gaze (reports are world positions, so the head need not look at the objec
   left, saccade to the most salient location not inhibited (unexplained features weighted by
   eccentricity, :mod:`ipbench.perception.saliency`). It halts after :data:`HALT_AFTER`
   consecutive saccades without an object (the thesis' protocol).
+- ``active-vision-no-halt`` — an ablation (:data:`EXPLORATION_ABLATIONS`, not in the
+  benchmark's default set): ``active-vision`` without its halting rule, exploring to the
+  saccade budget; paired with ``active-vision`` over seeds it separates what the halting rule
+  costs from what the choice of fixations does.
 - ``random-gaze`` — fixates random points of the table; reports what it sees, unverified.
 - ``raster-scan`` — sweeps the table in a serpentine grid of :data:`RASTER` fixations, then
   halts.
@@ -41,6 +45,7 @@ from ipbench.policies.gaze import aim, pixel_on_table, table_point, verge_right
 from ipbench.policies.stereo_look import Candidate, Look, look
 
 __all__ = [
+    "EXPLORATION_ABLATIONS",
     "EXPLORATION_POLICIES",
     "EXPLORATION_POLICY_VERSION",
     "HALT_AFTER",
@@ -61,6 +66,9 @@ EXPLORATION_POLICIES: tuple[str, ...] = (
     "oracle-gaze",
 )
 """Policy names of the exploration benchmark."""
+EXPLORATION_ABLATIONS: tuple[str, ...] = ("active-vision-no-halt",)
+"""Variants of a policy with one of its rules removed, run by name only (never by default):
+they explain a policy's figures and are not benchmark entries."""
 EXPLORATION_POLICY_VERSION = 2
 """Version of what the exploration policies do with an observation (part of a run's
 fingerprint: results of other policy code are never mixed with this one's). 2: a candidate
@@ -238,6 +246,8 @@ class OracleGaze(ExplorationPolicy):
 
 class ActiveVision(ExplorationPolicy):
     name = "active-vision"
+    halt_after: int | None = HALT_AFTER
+    """Consecutive saccades without an object before it halts; ``None``: it never halts."""
 
     def reset(self, seed: int) -> None:
         super().reset(seed)
@@ -275,7 +285,7 @@ class ActiveVision(ExplorationPolicy):
         ]
         if not verified and self.fixations:  # after a saccade to a salient or random place
             self.misses = 0 if new else self.misses + 1
-        if self.misses >= HALT_AFTER and not self.queue:
+        if self.halt_after is not None and self.misses >= self.halt_after and not self.queue:
             self.halted = True
             return obs["head_qpos"], "halt", None, disparity
         if new:
@@ -290,13 +300,23 @@ class ActiveVision(ExplorationPolicy):
         return aim(table_point(*self.rng.uniform(0, 1, 2))), "random", None, disparity
 
 
-_POLICIES = {p.name: p for p in (ActiveVision, RandomGaze, RasterScan, OracleGaze)}
+class ActiveVisionNoHalt(ActiveVision):
+    """``active-vision`` without the halting rule (an ablation): the same fixations, to the
+    saccade budget."""
+
+    name = "active-vision-no-halt"
+    halt_after = None
+
+
+_POLICIES = {
+    p.name: p for p in (ActiveVision, RandomGaze, RasterScan, OracleGaze, ActiveVisionNoHalt)
+}
 
 
 def make_exploration_policy(name: str, database: ObjectDatabase, **kwargs) -> ExplorationPolicy:
-    """The policy called ``name`` (one of :data:`EXPLORATION_POLICIES`) on ``database``."""
+    """The policy called ``name`` (one of :data:`EXPLORATION_POLICIES` or
+    :data:`EXPLORATION_ABLATIONS`) on ``database``."""
     if name not in _POLICIES:
-        raise ExplorationPolicyError(
-            f"unknown exploration policy {name!r}; valid: {', '.join(EXPLORATION_POLICIES)}"
-        )
+        valid = ", ".join((*EXPLORATION_POLICIES, *EXPLORATION_ABLATIONS))
+        raise ExplorationPolicyError(f"unknown exploration policy {name!r}; valid: {valid}")
     return _POLICIES[name](database, **kwargs)

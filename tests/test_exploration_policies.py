@@ -18,6 +18,7 @@ from ipbench.eval.capture.exploration_database import (
     load_or_build_database,
 )
 from ipbench.policies.exploration import (
+    EXPLORATION_ABLATIONS,
     EXPLORATION_POLICIES,
     HALT_AFTER,
     READS_INFO,
@@ -121,8 +122,17 @@ def test_the_oracle_reads_info_and_says_so_without_it(database):
 
 
 def test_an_unknown_policy_lists_the_valid_ones(database):
-    with pytest.raises(ExplorationPolicyError, match="valid: " + ", ".join(EXPLORATION_POLICIES)):
+    valid = ", ".join((*EXPLORATION_POLICIES, *EXPLORATION_ABLATIONS))
+    with pytest.raises(ExplorationPolicyError, match="valid: " + valid):
         make_exploration_policy("saccadic", database)
+
+
+def test_ablations_are_not_benchmark_policies():
+    from ipbench.eval.exploration.evaluate import ExplorationEvalConfig
+
+    assert not set(EXPLORATION_ABLATIONS) & set(EXPLORATION_POLICIES)
+    assert not set(EXPLORATION_ABLATIONS) & set(ExplorationEvalConfig().policies)  # by name only
+    assert ExplorationEvalConfig(policies=EXPLORATION_ABLATIONS).policies == EXPLORATION_ABLATIONS
 
 
 def test_an_object_is_reported_once(database):
@@ -166,3 +176,32 @@ def test_a_point_off_the_work_table_is_no_object_there():
     assert not on_table(centre + [0, 0, OBJECT_HEIGHT_M + 0.01])  # above anything on it
     assert not on_table(centre + [half[0] + 0.1, 0, 0.1])  # beside the table
     assert not on_table([10.47, -1.51, -8.11])  # a false correspondence seen in a run
+
+
+def _explore(name: str, database, steps: int) -> tuple[list[int], list]:
+    """The report kinds and fixations of ``name`` on simple seed 0, up to its halt."""
+    env = _env(scene="simple", saccade_budget=steps)
+    policy = make_exploration_policy(name, database)
+    policy.reset(0)
+    obs, _ = env.reset(seed=0)
+    kinds = []
+    for _ in range(steps):
+        action = policy.act(obs)
+        kinds.append(action["report"]["kind"])
+        if kinds[-1] == 2:
+            break
+        obs, *_ = env.step(action)
+    env.close()
+    return kinds, policy.fixations
+
+
+def test_without_its_halting_rule_active_vision_fixates_the_same_and_goes_on(database):
+    few = type(database)(database.feature_type, database.views[:1])  # finds ~nothing
+    kinds, fixations = _explore("active-vision", few, 14)
+    assert kinds[-1] == 2, "active-vision never halted"
+    going, going_fixations = _explore("active-vision-no-halt", few, 14)
+    assert 2 not in going and len(going) == 14  # explores to the budget
+    halt = len(kinds) - 1
+    assert [f.axis for f in going_fixations[: halt + 1]] == [f.axis for f in fixations]
+    assert [f.kind for f in going_fixations[:halt]] == [f.kind for f in fixations[:halt]]
+    assert fixations[halt].kind == "halt" != going_fixations[halt].kind

@@ -44,7 +44,8 @@ def add_eval_exploration(eval_sub) -> argparse.ArgumentParser:
     p.add_argument(
         "--policies",
         default="active-vision,random-gaze,raster-scan,oracle-gaze",
-        help="comma-separated policies: {EXPLORATION_POLICIES}",
+        help="comma-separated policies: {EXPLORATION_POLICIES}; ablations, run by name only: "
+        "{EXPLORATION_ABLATIONS}",
     )
     p.add_argument("--features", default="sift", help="comma-separated feature types: {FEATURES}")
     p.add_argument(
@@ -129,12 +130,14 @@ def main_exploration(args) -> int:
         ExplorationEvalError,
         run_exploration_eval,
     )
-    from ipbench.policies.exploration import EXPLORATION_POLICIES
+    from ipbench.policies.exploration import EXPLORATION_ABLATIONS, EXPLORATION_POLICIES
 
     def run():
         config = ExplorationEvalConfig(
             scenes=parse_names(args.scenes, tuple(LEVELS), "scene(s)"),
-            policies=parse_names(args.policies, EXPLORATION_POLICIES, "policy(ies)"),
+            policies=parse_names(
+                args.policies, (*EXPLORATION_POLICIES, *EXPLORATION_ABLATIONS), "policy(ies)"
+            ),
             features=features,
             seeds=parse_seeds(args.seeds),
             saccade_budget=args.budget,

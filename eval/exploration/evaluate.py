@@ -40,6 +40,7 @@ from ipbench.perception.features2d import FEATURE_TYPES
 from ipbench.perception.object_database import ObjectDatabase
 from ipbench.perception.saliency import INHIBITION_RADIUS_RAD
 from ipbench.policies.exploration import (
+    EXPLORATION_ABLATIONS,
     EXPLORATION_POLICIES,
     EXPLORATION_POLICY_VERSION,
     READS_INFO,
@@ -106,7 +107,7 @@ class ExplorationEvalConfig:
     def __post_init__(self) -> None:
         for kind, names, valid in (
             ("scene", self.scenes, tuple(LEVELS)),
-            ("policy", self.policies, EXPLORATION_POLICIES),
+            ("policy", self.policies, (*EXPLORATION_POLICIES, *EXPLORATION_ABLATIONS)),
             ("feature type", self.features, FEATURE_TYPES),
         ):
             bad = [n for n in names if n not in valid] or ([] if names else ["(none)"])

@@ -30,7 +30,14 @@ SCENES: tuple[str, ...] = ("simple", "medium", "complex")
 """Scene levels, in display order (the keys of ``ipbench.envs.exploration_scene.LEVELS``)."""
 FEATURES: tuple[str, ...] = ("sift", "kaze", "akaze", "orb")
 """Feature types, in display order (``ipbench.perception.features2d.FEATURE_TYPES``)."""
-POLICY_ORDER = ("active-vision", "oracle-gaze", "raster-scan", "random-gaze")
+POLICY_ORDER = (
+    "active-vision",
+    "oracle-gaze",
+    "raster-scan",
+    "random-gaze",
+    "active-vision-no-halt",
+)
+"""Display order of the policies (the benchmark's, then its ablations)."""
 FP_REASONS = ("wrong_class", "already_reported", "nothing_there")
 PROPOSED = "active-vision"
 """The policy the report compares with every other (paired over seeds)."""
