@@ -8,6 +8,7 @@ import json
 import math
 
 import pytest
+from exploration_records import episode_record as _record
 
 from ipbench.eval.episodes import load_episodes
 from ipbench.eval.exploration.report import (
@@ -25,40 +26,6 @@ BUDGET = 4
 PUBLIC = ("performance_mean", "ci_low", "ci_high", "n", "true_positives", "false_positives")
 MORE = ("not_found", "recovered", "recall_auc", "saccades_to_all_mean", "refixation_rate")
 MORE += ("localisation_mm_median", "cycle_s")
-
-
-def _record(scene, policy, feature, seed, tp, fp, nf, curve, **extra) -> dict:
-    """A consistent record: performance from the counts, all false positives "nothing there",
-    one localisation error of 10 mm per true positive unless given."""
-    to_all = next((k for k, r in enumerate(curve) if r >= 1.0), None)
-    record = {
-        "scene": scene,
-        "policy": policy,
-        "feature": feature,
-        "seed": seed,
-        "n_database": tp + nf,
-        "true_positives": tp,
-        "false_positives": fp,
-        "not_found": nf,
-        "performance": tp / (tp + fp + nf),
-        "recovered": 0,
-        "fp_reasons": {"wrong_class": 0, "already_reported": 0, "nothing_there": fp},
-        "saccades": len(curve) - 1,
-        "sim_time_s": 1.5 * (len(curve) - 1),
-        "wall_time_s": 3.0,
-        "steps": len(curve),
-        "recall_curve": curve,
-        "saccades_to_all": to_all,
-        "sim_s_to_all": None if to_all is None else 1.5 * to_all,
-        "refixation_rate": 0.0,
-        "localisation_mm": [10.0] * tp,
-        "halted": True,
-        "truncated": False,
-        "video": None,
-        "cycle_s": 0.5,
-    }
-    record.update(extra)
-    return record
 
 
 # The hand-made cell: simple scene, active-vision, SIFT, seeds 0-2.
