@@ -44,8 +44,7 @@ def add_eval_exploration(eval_sub) -> argparse.ArgumentParser:
     p.add_argument(
         "--policies",
         default="active-vision,random-gaze,raster-scan,oracle-gaze",
-        help="comma-separated policies: {EXPLORATION_POLICIES}; ablations, run by name only: "
-        "{EXPLORATION_ABLATIONS}",
+        help="comma-separated: {EXPLORATION_POLICIES}; ablations: {EXPLORATION_ABLATIONS}",
     )
     p.add_argument("--features", default="sift", help="comma-separated feature types: {FEATURES}")
     p.add_argument(
