@@ -79,6 +79,9 @@ def test_a_small_run_writes_the_report_and_resumes(tmp_path, capsys):
         assert r["looks"] == r["steps"] and r["sightings"]
         assert all(0 <= e <= 180 and px > 0 for e, _, px in r["sightings"])
         assert not r["true_positives"] or any(seen for _, seen, _ in r["sightings"])
+        # every instance not found is put down to one cause
+        assert sum(r["missed"].values()) == r["not_found"]
+    assert cell["missed"]["episodes"] == 1
     bins = cell["eccentricity"]["bins"]
     assert sum(b["n"] for b in bins) == len(records[0]["sightings"])
     title = (out / "exploration.md").read_text().splitlines()[0]

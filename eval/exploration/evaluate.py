@@ -35,6 +35,7 @@ from ipbench.envs.sensors import SensorError
 from ipbench.envs.sensors.foveation import fovea_window
 from ipbench.eval.capture.exploration_database import DatabaseCaptureConfig, load_or_build_database
 from ipbench.eval.episodes import BACKENDS, check_out, run_episodes, run_grid
+from ipbench.eval.exploration.missed import MissedTracker, known_objects
 from ipbench.eval.exploration.sightings import look_sightings
 from ipbench.perception.features2d import FEATURE_TYPES
 from ipbench.perception.object_database import ObjectDatabase
@@ -269,8 +270,12 @@ def _run_episode(
     terminated = truncated = False
     sightings: list[list] = []
     false_candidates = looks = 0
+    tracker = MissedTracker(objects)
+    found_instances: set[str] = set()
     while not (terminated or truncated):
+        known = known_objects(policy)
         action = policy.act(obs, info if task.policy in READS_INFO else None)
+        tracker.look(policy, obs, info, known)
         seen = look_sightings(policy.last_look, obs, info, config.fovea_factor)
         sightings += [[e, r, p] for e, r, p in seen.sightings]
         false_candidates += seen.false_candidates
@@ -286,6 +291,7 @@ def _run_episode(
                 reported = np.asarray(action["report"]["position"], float)
                 localisation.append(round(1000 * float(np.linalg.norm(reported - true)), 2))
                 recovered += outcome["instance"] in mistaken
+                found_instances.add(outcome["instance"])
             else:
                 reasons[outcome["reason"]] += 1
                 if outcome["reason"] == "wrong_class":
@@ -330,6 +336,7 @@ def _run_episode(
         "sightings": sightings,
         "false_candidates": false_candidates,
         "looks": looks,
+        "missed": tracker.missed(found_instances, mistaken),
     }
 
 

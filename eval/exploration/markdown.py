@@ -8,6 +8,7 @@ from __future__ import annotations
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass
 
+from ipbench.eval.exploration.missed import MISSED_CAUSES
 from ipbench.eval.exploration.records import FEATURES, PAIRED_KEY, PROPOSED, ordered
 
 __all__ = ["THESIS_FIGURES", "ThesisFigure", "markdown_lines"]
@@ -233,6 +234,39 @@ def _eccentricity_lines(summary: Mapping) -> list[str]:
     return [*lines, ""]
 
 
+_MISSED_HOW_TO_READ = (
+    "How to read: every database instance an episode did not find is put down to the first "
+    "stage of the exploration that lost it, followed look by look: {causes}. A cell is the "
+    "share of the instances not found (their number in brackets); `episodes`: those that "
+    "recorded it (records written before it existed have none)."
+)
+
+
+def _missed_lines(summary: Mapping) -> list[str]:
+    rows = [
+        (scene, policy, feature, cell["missed"])
+        for scene, by_policy in summary.items()
+        for policy, by_feature in by_policy.items()
+        for feature, cell in by_feature.items()
+        if "missed" in cell
+    ]
+    if not rows:
+        return []
+    causes = ", ".join(f"*{c.replace('_', ' ')}* ({what})" for c, what in MISSED_CAUSES.items())
+    lines = ["## Where the objects not found were lost", ""]
+    lines += [_MISSED_HOW_TO_READ.format(causes=causes), ""]
+    names = [c.replace("_", " ") for c in MISSED_CAUSES]
+    lines += _head(["scene", "feature", "policy", "not found", *names, "episodes"])
+    for scene, policy, feature, m in sorted(rows, key=lambda r: FEATURES.index(r[2])):
+        total = sum(m["causes"].values())
+        cells = [
+            "–" if not total else f"{100 * m['causes'][c] / total:.0f} % ({m['causes'][c]})"
+            for c in MISSED_CAUSES
+        ]
+        lines.append(_row([scene, feature, policy, total, *cells, m["episodes"]]))
+    return [*lines, ""]
+
+
 def markdown_lines(
     summary: Mapping, budget: int, title: str, recall_figure: str = "recall.png"
 ) -> list[str]:
@@ -260,4 +294,4 @@ def markdown_lines(
     lines += [f"![recall vs saccades]({recall_figure})", ""]
     lines += ["## Paired comparisons over seeds", "", _PAIRED_HOW_TO_READ, ""]
     lines += [*_paired_table(summary), ""]
-    return lines + _eccentricity_lines(summary)
+    return lines + _eccentricity_lines(summary) + _missed_lines(summary)

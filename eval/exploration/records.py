@@ -11,6 +11,8 @@ import math
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from numbers import Integral, Real
 
+from ipbench.eval.exploration.missed import MISSED_CAUSES
+
 __all__ = [
     "FEATURES",
     "FP_REASONS",
@@ -125,6 +127,14 @@ _OPTIONAL: dict[str, tuple[str, Callable[[object], bool]]] = {
 three or none."""
 
 
+def _is_missed(v: object) -> bool:
+    return (
+        isinstance(v, Mapping)
+        and set(v) == set(MISSED_CAUSES)
+        and all(_is_int(n) and n >= 0 for n in v.values())
+    )
+
+
 def check_record(record: object, index: int) -> None:
     """Raise :class:`ExplorationReportError` naming the record and field on a bad record."""
     if not isinstance(record, Mapping):
@@ -159,6 +169,17 @@ def check_record(record: object, index: int) -> None:
         if not ok(record[key]):
             raise ExplorationReportError(f"{where}: {key} must be {what}, got {record[key]!r}")
     tp, fp, nf = (record[k] for k in ("true_positives", "false_positives", "not_found"))
+    if "missed" in record:  # optional: older records lack it (ipbench.eval.exploration.missed)
+        if not _is_missed(record["missed"]):
+            raise ExplorationReportError(
+                f"{where}: missed must map each of {', '.join(MISSED_CAUSES)} to an int >= 0, "
+                f"got {record['missed']!r}"
+            )
+        if sum(record["missed"].values()) != nf:
+            raise ExplorationReportError(
+                f"{where}: missed {dict(record['missed'])} does not add up to not_found = {nf} "
+                "(every instance not found has one cause)"
+            )
     if tp + nf != record["n_database"]:
         raise ExplorationReportError(
             f"{where}: true_positives + not_found = {tp + nf} but n_database = "

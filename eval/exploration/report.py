@@ -11,7 +11,8 @@ Input is one JSON record per exploration episode (``episodes.jsonl``, read with
      "recall_curve": [float, ...], "saccades_to_all": int | null, "sim_s_to_all": float | null,
      "refixation_rate": float, "localisation_mm": [float, ...], "halted": bool,
      "truncated": bool, "video": str | null, "cycle_s": float,
-     "sightings": [[float, bool, int], ...], "false_candidates": int, "looks": int}
+     "sightings": [[float, bool, int], ...], "false_candidates": int, "looks": int,
+     "missed": {cause: int, ...}}
 
 ``n_database``: database instances in the scene; ``performance`` = TP / (TP + FP + not found)
 (:mod:`ipbench.envs.exploration_scoring`), a fraction; ``recovered``: true positives of
@@ -21,7 +22,8 @@ first ``k`` with recall 1; ``refixation_rate``: share of fixations within 4 deg 
 one; ``localisation_mm``: 3-D error of each true positive's report (mm); ``cycle_s``: mean wall
 seconds per step; ``sightings``, ``false_candidates``, ``looks``: recognition against
 eccentricity (:mod:`ipbench.eval.exploration.sightings`; optional: records written before
-they existed lack all three).
+they existed lack all three); ``missed``: the instances not found per cause
+(:mod:`ipbench.eval.exploration.missed`; optional as well).
 
 Output (:func:`write_exploration_report`), per scene, policy and feature type: the thesis'
 Tables 3.2/3.3 counts summed over seeds, the per-seed performance's mean with a 95 %
@@ -44,6 +46,7 @@ import numpy as np
 from matplotlib.figure import Figure
 
 from ipbench.eval.exploration.markdown import THESIS_FIGURES, ThesisFigure, markdown_lines
+from ipbench.eval.exploration.missed import MISSED_CAUSES
 from ipbench.eval.exploration.records import (
     FEATURES,
     FP_REASONS,
@@ -141,7 +144,17 @@ def _cell_summary(runs: Sequence[Mapping], budget: int) -> dict:
         "halted": sum(bool(ep["halted"]) for ep in runs),
         "truncated": sum(bool(ep["truncated"]) for ep in runs),
         **_eccentricity(runs),
+        **_missed(runs),
     }
+
+
+def _missed(runs: Sequence[Mapping]) -> dict:
+    """Where the instances not found were lost, over the episodes that carry it (none: {})."""
+    carrying = [ep for ep in runs if "missed" in ep]
+    if not carrying:
+        return {}
+    causes = {c: sum(int(ep["missed"][c]) for ep in carrying) for c in MISSED_CAUSES}
+    return {"missed": {"episodes": len(carrying), "causes": causes}}
 
 
 def _eccentricity(runs: Sequence[Mapping]) -> dict:
@@ -227,8 +240,10 @@ def summarize_exploration(episodes: Sequence[Mapping], budget: int) -> dict:
         ``halted`` and ``truncated`` (episodes); when episodes carry sightings,
         ``eccentricity``: ``episodes, looks``, ``bins`` (``low_deg, high_deg, n,
         recognised`` per bin of ``sightings.ECCENTRICITY_BINS_DEG``) and
-        ``false_candidates_per_look``; and, for a baseline when ``active-vision`` ran the
-        same scene and feature, ``vs_active_vision``: the paired test of
+        ``false_candidates_per_look``; when episodes carry ``missed``, ``missed``:
+        ``episodes`` and ``causes`` (instances not found per cause of
+        ``missed.MISSED_CAUSES``, summed over those episodes); and, for a baseline when
+        ``active-vision`` ran the same scene and feature, ``vs_active_vision``: the paired test of
         ``active-vision`` minus this policy on per-seed performance (``n, mean_diff, ci_low,
         ci_high, p_value, method``, fractions; None for undefined values).
 
