@@ -15,19 +15,25 @@ from ipbench.eval.report.docs import PAGES, report_docs
 from ipbench.eval.report.runs import Discovery, DocsReportError, discover
 
 
-def _exploration_run(folder: Path, status: str = "released") -> None:
-    """20 seeds of the synthetic records; run.json as ``ipbench eval exploration`` writes it."""
-    records = [r for r in sample_records(range(20), late_drop=3) if r["policy"] != "raster-scan"]
+def _exploration_run(
+    folder: Path,
+    status: str = "released",
+    seeds: range = range(20),
+    head_size: tuple[int, int] = (3264, 4928),
+    fovea_factor: int = 4,
+) -> None:
+    """The synthetic records of ``seeds``; run.json as ``ipbench eval exploration`` writes it."""
+    records = [r for r in sample_records(seeds, late_drop=3) if r["policy"] != "raster-scan"]
     write_exploration_report(records, folder, BUDGET, "Active exploration on a test id")
     config = {
         "scenes": ["simple"],
         "policies": ["active-vision", "random-gaze", "oracle-gaze"],
         "features": ["sift"],
-        "seeds": list(range(20)),
+        "seeds": list(seeds),
         "saccade_budget": BUDGET,
         "env_id": "ipbench/Exploration-v1",
-        "head_size": [3264, 4928],
-        "fovea_factor": 4,
+        "head_size": list(head_size),
+        "fovea_factor": fovea_factor,
     }
     database = {
         "classes": 10,
@@ -77,6 +83,29 @@ def test_the_exploration_page_is_the_runs_own_report(results, tmp_path):
     assert "](exploration-exploration-v1.png)" in page
     recall = results / "exploration" / "v1" / "recall.png"
     assert (out / "exploration-exploration-v1.png").read_bytes() == recall.read_bytes()
+
+
+def test_runs_of_the_same_cells_are_set_side_by_side(results, tmp_path):
+    out = tmp_path / "docs"
+    report_docs(results, out)
+    assert "## Across runs" not in (out / "exploration.md").read_text()  # one run: nothing
+    _exploration_run(
+        results / "exploration" / "v1-full-frame", seeds=range(10), head_size=(1632, 2464),
+        fovea_factor=1,
+    )  # fmt: skip
+    report_docs(results, out)
+    page = (out / "exploration.md").read_text()
+    section = page[page.index("## Across runs") : page.index("## `exploration/v1`")]
+    assert (
+        "| scene | feature | policy | `exploration/v1` (ipbench/Exploration-v1, 4928x3264, "
+        "fovea 4x) | `exploration/v1-full-frame` (ipbench/Exploration-v1, 2464x1632, full "
+        "frame) | same seeds |"
+    ) in section
+    # active-vision finds 5 + seed % 3 of 10: 59.5 % over seeds 0-19, 59 % over seeds 0-9
+    row = next(x for x in section.splitlines() if x.startswith("| simple | sift | active-vision"))
+    assert "| 59.5 [" in row and "(20) | 59.0 [" in row and row.endswith("(10) | no |")
+    rows = [x.split(" | ")[2] for x in section.splitlines() if x.startswith("| simple")]
+    assert rows == ["active-vision", "oracle-gaze", "random-gaze"]  # display order
 
 
 def test_the_overview_says_what_was_run(results, tmp_path):

@@ -9,6 +9,11 @@ and every comparison on disjoint seed sets
 headings move one level down under the run's, and its recall figure is copied beside the page
 as ``exploration-<run>.png``. What was run (command, environment, cameras, databases) is on
 the overview page (:mod:`ipbench.eval.report.index`).
+
+Runs that ran the same scene, policy and feature type — the same scenes through other cameras
+(another resolution, with or without a fovea) or another id — are set side by side first
+(:func:`across_runs_lines`): each run's mean over seeds with its own interval, and whether the
+seeds are the same.
 """
 
 from __future__ import annotations
@@ -16,11 +21,13 @@ from __future__ import annotations
 from collections.abc import Sequence
 
 from ipbench.eval.exploration.markdown import markdown_lines
+from ipbench.eval.exploration.records import FEATURES, POLICY_ORDER, SCENES
 from ipbench.eval.exploration.seed_sets import seed_set_groups_from_records, seed_set_lines
 from ipbench.eval.markdown import generated_header, seeds_text
 from ipbench.eval.report.runs import DocsReportError, Run
 
 __all__ = [
+    "across_runs_lines",
     "exploration_command",
     "exploration_figure_name",
     "exploration_items",
@@ -94,6 +101,70 @@ def exploration_items(run: Run) -> list[str]:
     ]
 
 
+def _short_cameras(config: dict) -> str:
+    if not config.get("head_size"):
+        return "cameras not recorded"
+    h, w = config["head_size"]
+    f = config.get("fovea_factor", 1)
+    return f"{w}x{h}" + (f", fovea {f}x" if f != 1 else ", full frame")
+
+
+def _cell_text(cell: dict) -> str:
+    return (
+        f"{100 * cell['performance_mean']:.1f} [{100 * cell['ci_low']:.1f}, "
+        f"{100 * cell['ci_high']:.1f}] ({cell['n']})"
+    )
+
+
+def _rank(key: tuple[str, str, str]) -> tuple:
+    scene, feature, policy = key
+    order = [*POLICY_ORDER, policy]
+    return (_index(SCENES, scene), _index(FEATURES, feature), order.index(policy), policy)
+
+
+def _index(names: Sequence[str], name: str) -> int:
+    return names.index(name) if name in names else len(names)
+
+
+def across_runs_lines(runs: Sequence[Run]) -> list[str]:
+    """The section setting side by side the runs' cells of the same scene, policy and feature
+    type (none: no line), rows in display order (scenes, feature types, policies)."""
+    summaries = {run.name: run.json("summary.json") or {} for run in runs}
+    keys: dict[tuple[str, str, str], list[str]] = {}
+    for name, summary in summaries.items():
+        for scene, by_policy in summary.items():
+            for policy, by_feature in by_policy.items():
+                for feature in by_feature:
+                    keys.setdefault((scene, feature, policy), []).append(name)
+    shared = {k: v for k, v in keys.items() if len(v) > 1}
+    if not shared:
+        return []
+    names = [r.name for r in runs if any(r.name in v for v in shared.values())]
+    configs = {r.name: _config(r) for r in runs}
+    lines = ["## Across runs", ""]
+    lines += [
+        "The same scene, policy and feature type in more than one run: objects found, TP / "
+        "(TP + FP + not found) per episode, mean over seeds in % with each run's own 95 % "
+        "bootstrap interval and its number of seeds. The runs differ in what their commands "
+        "on the [overview](index.md) say (the environment and its cameras); `same seeds` says "
+        "whether every run of the row ran the same seeds (scenes then match object for "
+        "object). The intervals are not a paired test of the runs.",
+        "",
+    ]
+    head = ["scene", "feature", "policy"]
+    head += [
+        f"`{n}` ({configs[n].get('env_id', '–')}, {_short_cameras(configs[n])})" for n in names
+    ]
+    lines += ["| " + " | ".join([*head, "same seeds"]) + " |"]
+    lines += ["|" + "---|" * (len(head) + 1)]
+    for (scene, feature, policy), with_it in sorted(shared.items(), key=lambda kv: _rank(kv[0])):
+        cells = [summaries[n][scene][policy][feature] if n in with_it else None for n in names]
+        seeds = {tuple(c.get("seeds", [])) for c in cells if c is not None}
+        row = [scene, feature, policy, *("–" if c is None else _cell_text(c) for c in cells)]
+        lines.append("| " + " | ".join([*row, "yes" if len(seeds) == 1 else "no"]) + " |")
+    return [*lines, ""]
+
+
 def _demoted(lines: Sequence[str]) -> list[str]:
     return [f"#{line}" if line.startswith("#") else line for line in lines]
 
@@ -128,6 +199,7 @@ def exploration_page(runs: Sequence[Run]) -> str:
     ]
     if not runs:
         lines += ["None among the results (`ipbench eval exploration`).", ""]
+    lines += across_runs_lines(runs)
     for run in runs:
         lines += _run_lines(run)
     return "\n".join(lines).rstrip("\n") + "\n"
