@@ -195,6 +195,19 @@ def _paired_table(summary: Mapping) -> list[str]:
     return [*_head([*head, "95 % CI", "p"]), *rows]
 
 
+def _cells_with(summary: Mapping, key: str) -> list[tuple[str, str, str, Mapping]]:
+    """``(scene, policy, feature, cell[key])`` of every cell of ``summary`` that has ``key``,
+    sorted by feature type (display order)."""
+    rows = [
+        (scene, policy, feature, cell[key])
+        for scene, by_policy in summary.items()
+        for policy, by_feature in by_policy.items()
+        for feature, cell in by_feature.items()
+        if key in cell
+    ]
+    return sorted(rows, key=lambda r: FEATURES.index(r[2]))
+
+
 _ECCENTRICITY_HOW_TO_READ = (
     "How to read: at every look, each database instance visible in the left head image is a "
     "sighting; its eccentricity is the angle between the camera's optical axis and the ray "
@@ -208,13 +221,7 @@ _ECCENTRICITY_HOW_TO_READ = (
 
 
 def _eccentricity_lines(summary: Mapping) -> list[str]:
-    rows = [
-        (scene, policy, feature, cell["eccentricity"])
-        for scene, by_policy in summary.items()
-        for policy, by_feature in by_policy.items()
-        for feature, cell in by_feature.items()
-        if "eccentricity" in cell
-    ]
+    rows = _cells_with(summary, "eccentricity")
     if not rows:
         return []
     bins = rows[0][3]["bins"]
@@ -224,7 +231,7 @@ def _eccentricity_lines(summary: Mapping) -> list[str]:
     ]
     lines = ["## Recognition against eccentricity", "", _ECCENTRICITY_HOW_TO_READ, ""]
     lines += _head(["scene", "feature", "policy", *bands, "false / look", "looks", "episodes"])
-    for scene, policy, feature, e in sorted(rows, key=lambda r: FEATURES.index(r[2])):
+    for scene, policy, feature, e in rows:
         cells = [
             "–" if b["n"] == 0 else f"{100 * b['recognised'] / b['n']:.0f} % ({b['n']})"
             for b in e["bins"]
@@ -243,13 +250,7 @@ _MISSED_HOW_TO_READ = (
 
 
 def _missed_lines(summary: Mapping) -> list[str]:
-    rows = [
-        (scene, policy, feature, cell["missed"])
-        for scene, by_policy in summary.items()
-        for policy, by_feature in by_policy.items()
-        for feature, cell in by_feature.items()
-        if "missed" in cell
-    ]
+    rows = _cells_with(summary, "missed")
     if not rows:
         return []
     causes = ", ".join(f"*{c.replace('_', ' ')}* ({what})" for c, what in MISSED_CAUSES.items())
@@ -257,7 +258,7 @@ def _missed_lines(summary: Mapping) -> list[str]:
     lines += [_MISSED_HOW_TO_READ.format(causes=causes), ""]
     names = [c.replace("_", " ") for c in MISSED_CAUSES]
     lines += _head(["scene", "feature", "policy", "not found", *names, "episodes"])
-    for scene, policy, feature, m in sorted(rows, key=lambda r: FEATURES.index(r[2])):
+    for scene, policy, feature, m in rows:
         total = sum(m["causes"].values())
         cells = [
             "–" if not total else f"{100 * m['causes'][c] / total:.0f} % ({m['causes'][c]})"
